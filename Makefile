@@ -1,0 +1,67 @@
+# clod_haptics: `make demo` runs the main job, `make test` every test. Both install what is missing
+# (Debian 12 packages), build in a catkin workspace under .build and keep logs there.
+SHELL := /bin/bash
+ROOT := $(CURDIR)
+BUILD := $(ROOT)/.build
+WS := $(BUILD)/ws
+JOBS ?= 2
+# The login python3 may be a pyenv one without ROS modules: catkin, rostest and dynparam need Debian's.
+export PATH := /usr/bin:/bin:$(PATH)
+export PYENV_VERSION := system
+export ROS_HOME := $(BUILD)/ros_home
+export ROS_LOG_DIR := $(BUILD)/ros_home/log
+
+# Debian packages the package needs (ROS 1 from Debian, no /opt/ros).
+APT_ROS := ros-base-dev python3-dynamic-reconfigure python3-rostest rosbash libtf2-ros-dev libgtest-dev \
+  libeigen3-dev libassimp-dev rviz python3-geometry-msgs python3-visualization-msgs
+APT_SCREENSHOT := xvfb xauth imagemagick
+APT_BENCH := libcgal-dev libfcl-dev libembree-dev libbenchmark-dev python3-matplotlib python3-numpy
+
+CATKIN := cd $(WS) && catkin_make -j$(JOBS) --cmake-args -DCMAKE_BUILD_TYPE=Release $(CMAKE_EXTRA) --
+SETUP := source $(WS)/devel/setup.bash
+TOOL := $(WS)/devel/lib/clod_haptics/clod_tool
+DEMO_MESH := $(ROOT)/data/meshes/torus.obj
+
+.PHONY: all deps deps-screenshot deps-bench build test demo demo-core clean
+
+all: build
+
+# Installs only the packages that are missing; apt-get update only when something is.
+define apt_install
+	@missing=$$(for p in $(1); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q '^install ok installed' || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+	  echo "installing:" $$missing; \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing >/dev/null; \
+	fi
+endef
+
+deps:
+	$(call apt_install,$(APT_ROS))
+
+deps-screenshot:
+	$(call apt_install,$(APT_SCREENSHOT))
+
+deps-bench:
+	$(call apt_install,$(APT_BENCH))
+
+$(WS)/src/clod_haptics:
+	@mkdir -p $(WS)/src $(ROS_HOME)
+	@ln -sfn $(ROOT) $(WS)/src/clod_haptics
+
+build: deps $(WS)/src/clod_haptics
+	@$(CATKIN) all
+
+test: deps $(WS)/src/clod_haptics
+	@$(CATKIN) all tests
+	@rm -rf $(WS)/build/test_results
+	@$(SETUP) && cd $(WS) && catkin_make -j1 run_tests > $(BUILD)/run_tests.log 2>&1; \
+	  grep -E '^\[ +(OK|FAILED|SKIPPED) +\]|RESULT:|FAILURE|ERROR' $(BUILD)/run_tests.log | grep -v '^\[ *OK' | tail -60 || true
+	@$(SETUP) && python3 $(ROOT)/scripts/count_test_results.py $(WS)/build/test_results
+
+demo: build
+	@echo "== clod_haptics demo: CLOD sweep of the bundled mesh ($(DEMO_MESH)) =="
+	@$(TOOL) sweep --mesh $(DEMO_MESH) --normalize --distances 0,0.01,0.02,0.03,0.04,0.05,0.06,0.07,0.08
+
+clean:
+	rm -rf $(BUILD)

@@ -1,0 +1,45 @@
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+namespace clod_haptics {
+
+/**
+ * \brief One node of a bounding-box tree kept in a flat array (depth first, left child next to its
+ * parent). Bounds are float, rounded outward and padded, so a test against them never rejects what
+ * the double-precision geometry inside would accept.
+ */
+struct BoxNode {
+  float lo[3];
+  float hi[3];
+  std::uint32_t first;  ///< leaf: first entry of its run in the order array; inner: absolute index of the right child
+  std::uint32_t count;  ///< leaf: number of items (> 0); inner: 0
+};
+
+/**
+ * \brief Builds a tree over items given by their boxes (median split on the longest axis of the
+ * box centres), appending its nodes to nodes and the item order to order.
+ * \param pad absolute padding added around every box before rounding to float
+ * \return index of the root in nodes, or UINT32_MAX when there are no items
+ */
+std::uint32_t buildBoxTree(const std::vector<Eigen::AlignedBox3d>& boxes, int leafSize, double pad,
+                           std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order);
+
+/** \brief Squared distance from (px, py, pz) to a node's box, zero inside; computed in double. */
+inline double squaredDistanceToNode(const BoxNode& n, double px, double py, double pz) {
+  double dx = n.lo[0] - px, ex = px - n.hi[0];
+  double dy = n.lo[1] - py, ey = py - n.hi[1];
+  double dz = n.lo[2] - pz, ez = pz - n.hi[2];
+  dx = dx > ex ? dx : ex;
+  dy = dy > ey ? dy : ey;
+  dz = dz > ez ? dz : ez;
+  dx = dx > 0.0 ? dx : 0.0;
+  dy = dy > 0.0 ? dy : 0.0;
+  dz = dz > 0.0 ? dz : 0.0;
+  return dx * dx + dy * dy + dz * dz;
+}
+
+}  // namespace clod_haptics

@@ -1,0 +1,53 @@
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace clod_haptics {
+
+using Vec3 = Eigen::Vector3d;
+/** \brief Vertex indices of one triangle. */
+using Triangle = std::array<std::uint32_t, 3>;
+
+/**
+ * \brief An indexed triangle mesh in double precision, the geometry every other piece reads.
+ *
+ * Built only through makeMesh() or loadMesh(), which validate it: every index is in range, every
+ * coordinate finite. Zero-area triangles are kept (they must still be covered by a sphere) and get
+ * a zero normal rather than NaN.
+ */
+struct TriangleMesh {
+  std::string name;                 ///< file name or a caller-given label
+  std::vector<Vec3> vertices;       ///< positions, after scaling or normalising
+  std::vector<Triangle> triangles;  ///< counter-clockwise seen from outside when the source is consistent
+  std::vector<Vec3> normals;        ///< unit face normal per triangle, or zero for a zero-area triangle
+  double scale = 1.0;               ///< factor applied to the source coordinates
+  Vec3 offset = Vec3::Zero();       ///< translation applied after scaling (normalising only)
+
+  /** \brief Number of triangles. */
+  std::size_t size() const { return triangles.size(); }
+  /** \brief Vertex k (0..2) of triangle t. */
+  const Vec3& vertex(std::size_t t, int k) const { return vertices[triangles[t][k]]; }
+  /** \brief Centroid of triangle t. */
+  Vec3 centroid(std::size_t t) const { return (vertex(t, 0) + vertex(t, 1) + vertex(t, 2)) / 3.0; }
+  /** \brief Axis-aligned bounds of all vertices referenced by triangles. */
+  Eigen::AlignedBox3d bounds() const;
+  /** \brief Length of the bounds' diagonal: the model size every relative tolerance refers to. */
+  double diagonal() const { return bounds().diagonal().norm(); }
+};
+
+/**
+ * \brief Builds a validated mesh from raw arrays and computes the face normals.
+ * \throws InvalidParameter when an index is out of range, a coordinate is not finite or there is no triangle.
+ */
+TriangleMesh makeMesh(std::vector<Vec3> vertices, std::vector<Triangle> triangles, std::string name = "mesh");
+
+/** \brief Unit normal of the triangle (a, b, c), or zero when its area is zero relative to its size. */
+Vec3 faceNormal(const Vec3& a, const Vec3& b, const Vec3& c);
+
+}  // namespace clod_haptics

@@ -1,0 +1,31 @@
+#pragma once
+
+#include <string>
+
+#include "clod_haptics/core/mesh.h"
+
+namespace clod_haptics {
+
+/** \brief How a mesh file is turned into model coordinates. */
+struct MeshLoadOptions {
+  /** \brief Uniform factor applied to the file's coordinates (ignored when normalize is set). */
+  double scale = 1.0;
+  /**
+   * \brief Fit the model into the unit cube [0, 1]^3: centred, its largest extent scaled to 1, aspect
+   * kept. The paper's clustering distances 0 to 0.08 assume a model of about that size.
+   */
+  bool normalize = false;
+};
+
+/**
+ * \brief Loads any format assimp reads (OBJ, STL, PLY, OFF, DAE, ...), triangulated, with the node
+ * transforms applied, all meshes of the scene merged and vertices at identical positions joined.
+ * \throws MeshLoadError for a missing file, an unreadable format, no triangles or non-finite coordinates.
+ * \throws InvalidParameter for a scale that is not finite and positive.
+ */
+TriangleMesh loadMesh(const std::string& path, const MeshLoadOptions& options = {});
+
+/** \brief Applies a uniform scale, or the unit-cube normalisation, in place (used by loadMesh). */
+void transformMesh(TriangleMesh& mesh, const MeshLoadOptions& options);
+
+}  // namespace clod_haptics

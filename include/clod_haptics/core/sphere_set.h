@@ -1,0 +1,90 @@
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "clod_haptics/core/clustering.h"
+#include "clod_haptics/core/mesh.h"
+#include "clod_haptics/core/sphere_placement.h"
+
+namespace clod_haptics {
+
+/** \brief Figures of one build, the columns of the paper's Table 2 that do not need queries. */
+struct BuildStats {
+  std::size_t triangles = 0;          ///< triangles in the mesh
+  std::size_t centres = 0;            ///< sphere centres before clustering
+  std::size_t spheres = 0;            ///< spheres after clustering
+  std::size_t unpaired = 0;           ///< triangles without an opposite triangle (see PaperPlacement)
+  std::size_t degenerate = 0;         ///< zero-area triangles
+  std::size_t maxTrianglesPerSphere = 0;
+  double meanTrianglesPerSphere = 0.0;
+  double placementMs = 0.0;           ///< ray casts and sphere placement (shared by every level)
+  double clusteringMs = 0.0;          ///< clustering and fitting of this level
+};
+
+/**
+ * \brief One contact level of detail: the clustered spheres of a mesh for a clustering distance.
+ *
+ * Flat arrays: sphere i has centres[i], radii[i] and wraps the triangles
+ * triangles[offsets[i] .. offsets[i+1]). Invariant: every triangle of the mesh lies inside at
+ * least one sphere that lists it (its radius reaches every vertex of every listed triangle).
+ */
+struct ClodSphereSet {
+  std::string meshName;
+  double scale = 1.0;       ///< the mesh's scale, for the file format
+  double distance = 0.0;    ///< clustering distance d
+  std::vector<Vec3> centres;
+  std::vector<double> radii;
+  std::vector<std::uint32_t> offsets{0};
+  std::vector<std::uint32_t> triangles;
+  BuildStats stats;
+
+  /** \brief Number of spheres. */
+  std::size_t size() const { return centres.size(); }
+  /** \brief First listed triangle of sphere i. */
+  const std::uint32_t* begin(std::size_t i) const { return triangles.data() + offsets[i]; }
+  /** \brief One past the last listed triangle of sphere i. */
+  const std::uint32_t* end(std::size_t i) const { return triangles.data() + offsets[i + 1]; }
+};
+
+/**
+ * \brief Builds CLOD sphere sets of one mesh. The placement (the ray casts) runs once, in the
+ * constructor; each build(d) only clusters, so a sweep over d or a reconfigure is cheap.
+ * Thread-safe: build() is const and may run concurrently.
+ */
+class ClodBuilder {
+ public:
+  /** \brief Runs the placement; defaults to the paper's rule and single-link clustering. */
+  explicit ClodBuilder(std::shared_ptr<const TriangleMesh> mesh,
+                       std::shared_ptr<const SpherePlacement> placement = std::make_shared<PaperPlacement>(),
+                       std::shared_ptr<const Clustering> clustering = std::make_shared<SingleLinkClustering>());
+
+  /**
+   * \brief Clusters the placed spheres with distance d and fits one sphere per cluster: its centre is
+   * the mean of the member centres (on the central axis for a thin part) and its radius reaches every
+   * vertex of every triangle the members wrap.
+   * \throws InvalidParameter for a negative or non-finite d.
+   */
+  ClodSphereSet build(double d) const;
+
+  /** \brief The mesh. */
+  const std::shared_ptr<const TriangleMesh>& mesh() const { return mesh_; }
+  /** \brief The spheres before clustering. */
+  const std::vector<PlacedSphere>& placed() const { return placed_; }
+  /** \brief Statistics of the placement. */
+  const PlacementStats& placementStats() const { return placementStats_; }
+
+ private:
+  std::shared_ptr<const TriangleMesh> mesh_;
+  std::shared_ptr<const Clustering> clustering_;
+  std::vector<PlacedSphere> placed_;
+  std::vector<Vec3> placedCentres_;
+  PlacementStats placementStats_;
+};
+
+/** \brief Throws InvalidParameter unless d is finite and not negative; what names the parameter. */
+void requireNonNegative(double value, const char* what);
+
+}  // namespace clod_haptics

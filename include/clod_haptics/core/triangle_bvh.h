@@ -1,0 +1,86 @@
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "clod_haptics/core/geometry.h"
+#include "clod_haptics/core/mesh.h"
+
+namespace clod_haptics {
+
+/**
+ * \brief A bounding-volume hierarchy over a mesh's triangles in flat arrays, for the ray casts of
+ * sphere placement (every hit along a ray, not only the first).
+ *
+ * Nodes are stored depth first; a leaf holds a contiguous run of the permuted triangle order.
+ */
+class TriangleBvh {
+ public:
+  /** \brief One node: bounds, and either the second child (inner) or a triangle run (leaf). */
+  struct Node {
+    double lo[3];
+    double hi[3];
+    std::uint32_t first;  ///< leaf: first entry in order(); inner: index of the right child
+    std::uint32_t count;  ///< leaf: number of triangles; inner: 0
+  };
+
+  /** \brief Builds the hierarchy; the mesh must outlive it. */
+  explicit TriangleBvh(const TriangleMesh& mesh, int leafSize = 4);
+
+  /**
+   * \brief Calls hit(triangle, t) for every triangle the ray origin + t dir meets at 0 < t < tMax.
+   * Order is unspecified. Allocates nothing.
+   */
+  template <class Hit>
+  void forEachRayHit(const Vec3& origin, const Vec3& dir, double tMax, Hit&& hit) const;
+
+  /** \brief The nodes, root first. */
+  const std::vector<Node>& nodes() const { return nodes_; }
+  /** \brief Triangle indices in leaf order. */
+  const std::vector<std::uint32_t>& order() const { return order_; }
+
+ private:
+  const TriangleMesh& mesh_;
+  std::vector<Node> nodes_;
+  std::vector<std::uint32_t> order_;
+};
+
+template <class Hit>
+void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double tMax, Hit&& hit) const {
+  if (nodes_.empty()) return;
+  double inv[3];
+  for (int k = 0; k < 3; ++k) inv[k] = 1.0 / dir[k];  // +-inf for a zero component is fine for the slab test
+  std::uint32_t stack[64];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const Node& node = nodes_[stack[--top]];
+    double t0 = 0.0, t1 = tMax;
+    bool miss = false;
+    for (int k = 0; k < 3 && !miss; ++k) {
+      double ta = (node.lo[k] - origin[k]) * inv[k];
+      double tb = (node.hi[k] - origin[k]) * inv[k];
+      if (ta > tb) std::swap(ta, tb);
+      if (ta != ta) ta = -1e300;  // 0 * inf: origin on the slab plane with a parallel ray
+      if (tb != tb) tb = 1e300;
+      t0 = ta > t0 ? ta : t0;
+      t1 = tb < t1 ? tb : t1;
+      miss = t0 > t1;
+    }
+    if (miss) continue;
+    if (node.count > 0) {
+      for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
+        const std::uint32_t tri = order_[i];
+        double t;
+        if (rayTriangle(origin, dir, mesh_.vertex(tri, 0), mesh_.vertex(tri, 1), mesh_.vertex(tri, 2), t) && t < tMax)
+          hit(tri, t);
+      }
+    } else {
+      const std::uint32_t self = static_cast<std::uint32_t>(&node - nodes_.data());
+      stack[top++] = node.first;
+      stack[top++] = self + 1;
+    }
+  }
+}
+
+}  // namespace clod_haptics

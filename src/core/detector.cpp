@@ -1,0 +1,252 @@
+#include "clod_haptics/core/detector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "clod_haptics/core/geometry.h"
+
+namespace clod_haptics {
+
+bool parseFastLevel(const char* text, FastLevel& level) {
+  if (text == nullptr) return false;
+  if (std::strcmp(text, "flat") == 0) {
+    level = FastLevel::Flat;
+  } else if (std::strcmp(text, "hierarchy") == 0) {
+    level = FastLevel::Hierarchy;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// The search state of one query: the current search radius shrinks as closer triangles are found.
+struct ClodDetector::Best {
+  double d2;      // squared search radius: r^2 until a contact, then the best squared distance
+  double reach;   // sqrt(d2), for sphere pruning
+  bool found = false;
+  std::uint32_t triangle = 0;
+  std::uint32_t sphere = 0;
+  Vec3 point = Vec3::Zero();
+  std::uint32_t tested = 0;
+  std::uint32_t hits = 0;
+};
+
+namespace {
+constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+}
+
+ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
+                           FastLevel fastLevel)
+    : mesh_(std::move(mesh)), spheres_(std::move(spheres)), fastLevel_(fastLevel) {
+  const TriangleMesh& m = *mesh_;
+  const ClodSphereSet& s = *spheres_;
+  const Eigen::AlignedBox3d bounds = m.bounds();
+  // Padding relative to the coordinates' magnitude: covers rounding in every bound test.
+  const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());
+  pad_ = 1e-12 * std::max(magnitude, bounds.diagonal().norm());
+
+  corners_.resize(9 * m.size());
+  for (std::size_t t = 0; t < m.size(); ++t)
+    for (int v = 0; v < 3; ++v)
+      for (int k = 0; k < 3; ++k) corners_[9 * t + 3 * v + k] = m.vertex(t, v)[k];
+
+  sphereData_.resize(4 * s.size());
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    for (int k = 0; k < 3; ++k) sphereData_[4 * i + k] = s.centres[i][k];
+    sphereData_[4 * i + 3] = s.radii[i] + pad_;
+  }
+
+  if (fastLevel_ == FastLevel::Hierarchy) {
+    std::vector<Eigen::AlignedBox3d> boxes(s.size());
+    for (std::size_t i = 0; i < s.size(); ++i)
+      boxes[i] = Eigen::AlignedBox3d(s.centres[i] - Vec3::Constant(s.radii[i]), s.centres[i] + Vec3::Constant(s.radii[i]));
+    buildBoxTree(boxes, 4, pad_, sphereNodes_, sphereOrder_);
+
+    triangleRoot_.assign(s.size(), kNone);
+    triangleOrder_.reserve(s.triangles.size());
+    std::vector<std::uint32_t> localOrder;
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      boxes.clear();
+      for (const std::uint32_t* t = s.begin(i); t != s.end(i); ++t) {
+        Eigen::AlignedBox3d b;
+        b.setEmpty();
+        for (int v = 0; v < 3; ++v) b.extend(m.vertex(*t, v));
+        boxes.push_back(b);
+      }
+      localOrder.clear();
+      const std::uint32_t root = buildBoxTree(boxes, 4, pad_, triangleNodes_, localOrder);
+      // Leaves index localOrder from 0; shift them into triangleOrder_ and map to triangle ids.
+      const std::uint32_t base = static_cast<std::uint32_t>(triangleOrder_.size());
+      for (std::uint32_t local : localOrder) triangleOrder_.push_back(s.begin(i)[local]);
+      if (root != kNone) {
+        for (std::size_t nIdx = root; nIdx < triangleNodes_.size(); ++nIdx)
+          if (triangleNodes_[nIdx].count > 0) triangleNodes_[nIdx].first += base;
+      }
+      triangleRoot_[i] = root;
+    }
+  }
+}
+
+inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode,
+                                       Best& best) const {
+  const double* c = corners_.data() + 9 * tri;
+  const Vec3 a(c[0], c[1], c[2]), b(c[3], c[4], c[5]), cc(c[6], c[7], c[8]);
+  Vec3 q;
+  ++best.tested;
+  if (mode == DetectionMode::Exact) {
+    q = closestPointOnTriangle(p, a, b, cc);
+  } else if (!projectInsideTriangle(p, a, b, cc, mesh_->normals[tri], q)) {
+    return;
+  }
+  const double d2 = (p - q).squaredNorm();
+  if (d2 < best.d2 || (d2 == best.d2 && (!best.found || tri < best.triangle))) {
+    best.d2 = d2;
+    best.reach = std::sqrt(d2);
+    best.found = true;
+    best.triangle = tri;
+    best.sphere = sphere;
+    best.point = q;
+  }
+}
+
+void ClodDetector::preciseFlat(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const {
+  const ClodSphereSet& s = *spheres_;
+  for (const std::uint32_t* t = s.begin(sphere); t != s.end(sphere); ++t) testTriangle(*t, sphere, p, mode, best);
+}
+
+void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const {
+  const std::uint32_t root = triangleRoot_[sphere];
+  if (root == kNone) return;
+  std::uint32_t stack[64];
+  int top = 0;
+  stack[top++] = root;
+  const BoxNode* nodes = triangleNodes_.data();
+  while (top > 0) {
+    const BoxNode& node = nodes[stack[--top]];
+    if (squaredDistanceToNode(node, p.x(), p.y(), p.z()) > best.d2) continue;
+    if (node.count > 0) {
+      for (std::uint32_t i = node.first; i < node.first + node.count; ++i)
+        testTriangle(triangleOrder_[i], sphere, p, mode, best);
+      continue;
+    }
+    const std::uint32_t left = static_cast<std::uint32_t>(&node - nodes) + 1, right = node.first;
+    const double dl = squaredDistanceToNode(nodes[left], p.x(), p.y(), p.z());
+    const double dr = squaredDistanceToNode(nodes[right], p.x(), p.y(), p.z());
+    // Nearer child last on the stack, so it is searched first and shrinks the radius sooner.
+    if (dl <= dr) {
+      if (dr <= best.d2) stack[top++] = right;
+      if (dl <= best.d2) stack[top++] = left;
+    } else {
+      if (dl <= best.d2) stack[top++] = left;
+      if (dr <= best.d2) stack[top++] = right;
+    }
+  }
+}
+
+template <class Visit>
+void ClodDetector::forEachHitSphere(double px, double py, double pz, const double& reach, Visit&& visit) const {
+  const double* sd = sphereData_.data();
+  if (fastLevel_ == FastLevel::Flat || sphereNodes_.empty()) {
+    const std::size_t n = spheres_->size();
+    for (std::size_t i = 0; i < n; ++i) {
+      const double dx = px - sd[4 * i], dy = py - sd[4 * i + 1], dz = pz - sd[4 * i + 2];
+      const double rr = sd[4 * i + 3] + reach;
+      if (dx * dx + dy * dy + dz * dz <= rr * rr) visit(static_cast<std::uint32_t>(i));
+    }
+    return;
+  }
+  std::uint32_t stack[64];
+  int top = 0;
+  stack[top++] = 0;
+  const BoxNode* nodes = sphereNodes_.data();
+  while (top > 0) {
+    const BoxNode& node = nodes[stack[--top]];
+    if (squaredDistanceToNode(node, px, py, pz) > reach * reach) continue;
+    if (node.count > 0) {
+      for (std::uint32_t j = node.first; j < node.first + node.count; ++j) {
+        const std::uint32_t i = sphereOrder_[j];
+        const double dx = px - sd[4 * i], dy = py - sd[4 * i + 1], dz = pz - sd[4 * i + 2];
+        const double rr = sd[4 * i + 3] + reach;
+        if (dx * dx + dy * dy + dz * dz <= rr * rr) visit(i);
+      }
+      continue;
+    }
+    const std::uint32_t left = static_cast<std::uint32_t>(&node - nodes) + 1, right = node.first;
+    const double dl = squaredDistanceToNode(nodes[left], px, py, pz);
+    const double dr = squaredDistanceToNode(nodes[right], px, py, pz);
+    if (dl <= dr) {
+      stack[top++] = right;
+      stack[top++] = left;
+    } else {
+      stack[top++] = left;
+      stack[top++] = right;
+    }
+  }
+}
+
+void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactResult& out) const noexcept {
+  out = ContactResult{};
+  if (!p.allFinite() || !std::isfinite(r) || r < 0.0) return;
+  Best best;
+  best.d2 = r * r;
+  best.reach = r;
+
+  if (mode == DetectionMode::Spheres) {
+    // Coarsest answer: the nearest sphere surface within r.
+    const double* sd = sphereData_.data();
+    double bestGap = std::numeric_limits<double>::infinity();
+    std::uint32_t bestSphere = kNone;
+    const double reach = r;
+    forEachHitSphere(p.x(), p.y(), p.z(), reach, [&](std::uint32_t i) {
+      ++best.hits;
+      const double gap = std::sqrt((p - Vec3(sd[4 * i], sd[4 * i + 1], sd[4 * i + 2])).squaredNorm()) - spheres_->radii[i];
+      if (gap < bestGap || (gap == bestGap && i < bestSphere)) {
+        bestGap = gap;
+        bestSphere = i;
+      }
+    });
+    out.spheresHit = best.hits;
+    if (bestSphere == kNone) return;
+    const Vec3& c = spheres_->centres[bestSphere];
+    const Vec3 v = p - c;
+    const double len = v.norm();
+    out.contact = true;
+    out.normal = len > 0.0 ? Vec3(v / len) : Vec3::UnitZ();
+    out.point = c + spheres_->radii[bestSphere] * out.normal;
+    out.distance = std::max(0.0, bestGap);
+    out.depth = r - out.distance;
+    out.sphere = static_cast<std::int32_t>(bestSphere);
+    return;
+  }
+
+  const bool tree = fastLevel_ == FastLevel::Hierarchy && !triangleRoot_.empty();
+  forEachHitSphere(p.x(), p.y(), p.z(), best.reach, [&](std::uint32_t i) {
+    ++best.hits;
+    if (tree)
+      preciseTree(i, p, mode, best);
+    else
+      preciseFlat(i, p, mode, best);
+  });
+  out.spheresHit = best.hits;
+  out.trianglesTested = best.tested;
+  if (!best.found) return;
+  out.contact = true;
+  out.point = best.point;
+  out.distance = std::sqrt(best.d2);
+  out.depth = r - out.distance;
+  out.triangle = static_cast<std::int32_t>(best.triangle);
+  out.sphere = static_cast<std::int32_t>(best.sphere);
+  out.normal = contactNormal(p, best.point, mesh_->normals[best.triangle]);
+}
+
+void ClodDetector::hitSpheres(const Vec3& p, double r, std::vector<std::uint32_t>& out) const {
+  out.clear();
+  if (!p.allFinite() || !std::isfinite(r) || r < 0.0) return;
+  const double reach = r;
+  forEachHitSphere(p.x(), p.y(), p.z(), reach, [&](std::uint32_t i) { out.push_back(i); });
+  std::sort(out.begin(), out.end());
+}
+
+}  // namespace clod_haptics

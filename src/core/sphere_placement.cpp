@@ -1,0 +1,125 @@
+#include "clod_haptics/core/sphere_placement.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <thread>
+
+#include "clod_haptics/core/triangle_bvh.h"
+
+namespace clod_haptics {
+namespace {
+
+double farthestVertex(const TriangleMesh& mesh, std::size_t t, const Vec3& centre) {
+  double r2 = 0.0;
+  for (int k = 0; k < 3; ++k) r2 = std::max(r2, (mesh.vertex(t, k) - centre).squaredNorm());
+  return std::sqrt(r2);
+}
+
+// The threshold steps of the paper, tau_k = -0.99 + 0.01 k. The opposite triangle is the nearest hit
+// with dot < tau_k for the smallest k that admits any hit; with m the smallest dot among all hits
+// that k is the first with tau_k > m, so one pass over the hits finds it.
+constexpr double kTau0 = -0.99;
+constexpr double kTauStep = 0.01;
+
+int firstAdmittingStep(double minDot) {
+  int k = static_cast<int>(std::floor((minDot - kTau0) / kTauStep)) + 1;
+  k = std::max(k, 0);
+  while (k > 0 && minDot < kTau0 + kTauStep * (k - 1)) --k;  // guard the floor against rounding
+  while (!(minDot < kTau0 + kTauStep * k)) ++k;
+  return k;
+}
+
+struct Hit {
+  std::uint32_t triangle;
+  double t;
+  double dot;
+};
+
+}  // namespace
+
+std::vector<PlacedSphere> PaperPlacement::place(const TriangleMesh& mesh, PlacementStats* stats) const {
+  const auto start = std::chrono::steady_clock::now();
+  const std::size_t n = mesh.size();
+  const TriangleBvh bvh(mesh);
+  const double minT = 1e-12 * mesh.diagonal();  // ignore hits at the origin itself (coplanar duplicates)
+
+  // Per triangle: the opposite triangle (or UINT32_MAX) and the relaxation steps taken.
+  std::vector<std::uint32_t> opposite(n, std::numeric_limits<std::uint32_t>::max());
+  std::vector<std::uint16_t> steps(n, 0);
+  std::atomic<std::size_t> next{0};
+  auto worker = [&](bool reporter) {
+    constexpr std::size_t kChunk = 256;
+    for (;;) {
+      const std::size_t begin = next.fetch_add(kChunk);
+      if (begin >= n) return;
+      if (reporter && progress_) progress_(static_cast<double>(begin) / static_cast<double>(n));
+      const std::size_t end = std::min(n, begin + kChunk);
+      for (std::size_t t = begin; t < end; ++t) {
+        const Vec3& normal = mesh.normals[t];
+        if (normal.isZero(0.0)) continue;
+        const Vec3 origin = mesh.centroid(t);
+        const Vec3 dir = -normal;
+        // Gather the smallest dot and, per candidate, keep only what decides: first pass finds the
+        // smallest dot, second pass (same hits, re-enumerated) the nearest hit under the threshold.
+        double minDot = std::numeric_limits<double>::infinity();
+        bvh.forEachRayHit(origin, dir, std::numeric_limits<double>::infinity(), [&](std::uint32_t tri, double dist) {
+          if (tri == t || dist <= minT) return;
+          minDot = std::min(minDot, mesh.normals[tri].dot(normal));
+        });
+        if (!std::isfinite(minDot)) continue;
+        const int k = firstAdmittingStep(minDot);
+        const double tau = kTau0 + kTauStep * k;
+        double bestT = std::numeric_limits<double>::infinity();
+        std::uint32_t best = std::numeric_limits<std::uint32_t>::max();
+        bvh.forEachRayHit(origin, dir, std::numeric_limits<double>::infinity(), [&](std::uint32_t tri, double dist) {
+          if (tri == t || dist <= minT) return;
+          if (mesh.normals[tri].dot(normal) < tau && (dist < bestT || (dist == bestT && tri < best))) {
+            bestT = dist;
+            best = tri;
+          }
+        });
+        opposite[t] = best;
+        steps[t] = static_cast<std::uint16_t>(k);
+      }
+    }
+  };
+  unsigned threads = threads_ ? threads_ : std::max(1u, std::thread::hardware_concurrency());
+  threads = static_cast<unsigned>(std::min<std::size_t>(threads, std::max<std::size_t>(1, n / 1024)));
+  std::vector<std::thread> pool;
+  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(worker, false);
+  worker(true);
+  for (auto& th : pool) th.join();
+  if (progress_) progress_(1.0);
+
+  PlacementStats s;
+  s.triangles = n;
+  std::vector<PlacedSphere> spheres;
+  spheres.reserve(2 * n);
+  for (std::size_t t = 0; t < n; ++t) {
+    const Vec3 c0 = mesh.centroid(t);
+    const std::uint32_t o = opposite[t];
+    if (o == std::numeric_limits<std::uint32_t>::max()) {
+      if (mesh.normals[t].isZero(0.0))
+        ++s.degenerate;
+      else
+        ++s.unpaired;
+      spheres.push_back({c0, farthestVertex(mesh, t, c0), static_cast<std::uint32_t>(t)});
+      continue;
+    }
+    ++s.paired;
+    s.relaxations += steps[t];
+    const Vec3 c1 = mesh.centroid(o);
+    const Vec3 quarter = c0 + 0.25 * (c1 - c0);
+    const Vec3 threeQuarter = c0 + 0.75 * (c1 - c0);
+    spheres.push_back({quarter, farthestVertex(mesh, t, quarter), static_cast<std::uint32_t>(t)});
+    spheres.push_back({threeQuarter, farthestVertex(mesh, o, threeQuarter), o});
+  }
+  s.milliseconds = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  if (stats) *stats = s;
+  return spheres;
+}
+
+}  // namespace clod_haptics

@@ -1,0 +1,111 @@
+#include "clod_haptics/core/sphere_set_io.h"
+
+#include <cstdio>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include "clod_haptics/core/errors.h"
+
+namespace clod_haptics {
+
+void writeSphereSetYaml(const ClodSphereSet& set, std::ostream& out) {
+  out << std::setprecision(17);
+  out << "format: clod_haptics/sphere_set/1\n";
+  out << "mesh: \"" << set.meshName << "\"\n";
+  out << "scale: " << set.scale << "\n";
+  out << "clustering_distance: " << set.distance << "\n";
+  const BuildStats& s = set.stats;
+  out << "stats: {triangles: " << s.triangles << ", centres: " << s.centres << ", spheres: " << s.spheres
+      << ", unpaired: " << s.unpaired << ", degenerate: " << s.degenerate << ", placement_ms: " << s.placementMs
+      << ", clustering_ms: " << s.clusteringMs << "}\n";
+  out << "spheres:\n";
+  for (std::size_t i = 0; i < set.size(); ++i) {
+    const Vec3& c = set.centres[i];
+    out << "  - {centre: [" << c.x() << ", " << c.y() << ", " << c.z() << "], radius: " << set.radii[i]
+        << ", triangles: [";
+    for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t) out << (t == set.begin(i) ? "" : ", ") << *t;
+    out << "]}\n";
+  }
+}
+
+void writeSphereSetYaml(const ClodSphereSet& set, const std::string& path) {
+  std::ofstream out(path);
+  if (!out) throw FormatError("cannot open '" + path + "' for writing");
+  writeSphereSetYaml(set, out);
+  out.flush();
+  if (!out) throw FormatError("writing '" + path + "' failed");
+}
+
+namespace {
+
+std::string afterKey(const std::string& line, const std::string& key, std::size_t lineNo) {
+  if (line.compare(0, key.size() + 2, key + ": ") != 0)
+    throw FormatError("line " + std::to_string(lineNo) + ": expected '" + key + ":'");
+  return line.substr(key.size() + 2);
+}
+
+double toDouble(const std::string& text, std::size_t lineNo) {
+  std::size_t used = 0;
+  double v = 0.0;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    throw FormatError("line " + std::to_string(lineNo) + ": '" + text + "' is not a number");
+  }
+  return v;
+}
+
+}  // namespace
+
+ClodSphereSet readSphereSetYaml(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw FormatError("cannot open '" + path + "'");
+  ClodSphereSet set;
+  std::string line;
+  std::size_t lineNo = 0;
+  auto next = [&]() {
+    if (!std::getline(in, line)) throw FormatError(path + ": ends early after line " + std::to_string(lineNo));
+    ++lineNo;
+  };
+  next();
+  if (line != "format: clod_haptics/sphere_set/1") throw FormatError(path + ": not a clod_haptics sphere set");
+  next();
+  std::string mesh = afterKey(line, "mesh", lineNo);
+  if (mesh.size() >= 2 && mesh.front() == '"' && mesh.back() == '"') mesh = mesh.substr(1, mesh.size() - 2);
+  set.meshName = mesh;
+  next();
+  set.scale = toDouble(afterKey(line, "scale", lineNo), lineNo);
+  next();
+  set.distance = toDouble(afterKey(line, "clustering_distance", lineNo), lineNo);
+  next();
+  afterKey(line, "stats", lineNo);
+  next();
+  if (line != "spheres:") throw FormatError(path + ": line " + std::to_string(lineNo) + ": expected 'spheres:'");
+  while (std::getline(in, line)) {
+    ++lineNo;
+    if (line.empty()) continue;
+    double x, y, z, r;
+    int used = 0;
+    if (std::sscanf(line.c_str(), "  - {centre: [%lf, %lf, %lf], radius: %lf, triangles: [%n", &x, &y, &z, &r, &used) !=
+            4 ||
+        used == 0)
+      throw FormatError(path + ": line " + std::to_string(lineNo) + ": malformed sphere");
+    set.centres.emplace_back(x, y, z);
+    set.radii.push_back(r);
+    std::istringstream list(line.substr(static_cast<std::size_t>(used)));
+    std::string item;
+    while (std::getline(list, item, ',')) {
+      const std::size_t end = item.find(']');
+      const std::string number = item.substr(0, end);
+      if (number.find_first_not_of(' ') != std::string::npos)
+        set.triangles.push_back(static_cast<std::uint32_t>(toDouble(number, lineNo)));
+      if (end != std::string::npos) break;
+    }
+    set.offsets.push_back(static_cast<std::uint32_t>(set.triangles.size()));
+  }
+  set.stats.spheres = set.size();
+  return set;
+}
+
+}  // namespace clod_haptics

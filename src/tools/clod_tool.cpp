@@ -1,0 +1,401 @@
+// clod_tool: build CLOD sphere sets, run queries and print the paper's Table 2, without roscore.
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/mesh_loader.h"
+#include "clod_haptics/core/probes.h"
+#include "clod_haptics/core/sphere_set.h"
+#include "clod_haptics/core/sphere_set_io.h"
+
+namespace {
+
+using namespace clod_haptics;
+using Clock = std::chrono::steady_clock;
+
+const char* kUsage =
+    "usage:\n"
+    "  clod_tool build --mesh M [--scale S | --normalize] --distance D --out SPHERES.yaml [--json]\n"
+    "  clod_tool query --mesh M [--scale S | --normalize] --distance D --radius R --mode exact|paper|spheres\n"
+    "                  --probes P.csv --out RESULT.csv [--fast hierarchy|flat] [--json]\n"
+    "  clod_tool sweep --mesh M [--scale S | --normalize] --distances 0,0.01,...,0.08 [--radius R]\n"
+    "                  [--mode exact|paper] [--fast hierarchy|flat] [--count N] [--json]\n";
+
+/** \brief A bad command line: printed as one line, exit code 2. */
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+double msSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+class Args {
+ public:
+  Args(int argc, char** argv, const std::vector<std::string>& flags, const std::vector<std::string>& switches) {
+    for (int i = 2; i < argc; ++i) {
+      std::string a = argv[i];
+      if (std::find(switches.begin(), switches.end(), a) != switches.end()) {
+        values_[a] = "1";
+      } else if (std::find(flags.begin(), flags.end(), a) != flags.end()) {
+        if (i + 1 >= argc) throw UsageError(a + " needs a value");
+        values_[a] = argv[++i];
+      } else {
+        throw UsageError("unknown argument '" + a + "'");
+      }
+    }
+  }
+  bool has(const std::string& k) const { return values_.count(k) > 0; }
+  std::string get(const std::string& k) const {
+    auto it = values_.find(k);
+    if (it == values_.end()) throw UsageError("missing " + k);
+    return it->second;
+  }
+  std::string get(const std::string& k, const std::string& fallback) const { return has(k) ? get(k) : fallback; }
+  double number(const std::string& k) const { return parseNumber(k, get(k)); }
+  double number(const std::string& k, double fallback) const { return has(k) ? number(k) : fallback; }
+  static double parseNumber(const std::string& k, const std::string& text) {
+    std::size_t used = 0;
+    double v;
+    try {
+      v = std::stod(text, &used);
+    } catch (const std::exception&) {
+      throw UsageError(k + " expects a number, got '" + text + "'");
+    }
+    if (used != text.size()) throw UsageError(k + " expects a number, got '" + text + "'");
+    return v;
+  }
+
+ private:
+  std::map<std::string, std::string> values_;
+};
+
+double nonNegative(const Args& args, const std::string& key, double fallback, bool required) {
+  const double v = required ? args.number(key) : args.number(key, fallback);
+  if (!std::isfinite(v) || v < 0.0) throw UsageError(key + " must be a finite number >= 0, got " + args.get(key));
+  return v;
+}
+
+MeshLoadOptions loadOptions(const Args& args) {
+  MeshLoadOptions o;
+  if (args.has("--scale") && args.has("--normalize")) throw UsageError("--scale and --normalize exclude each other");
+  o.normalize = args.has("--normalize");
+  if (args.has("--scale")) {
+    o.scale = args.number("--scale");
+    if (!(o.scale > 0.0) || !std::isfinite(o.scale)) throw UsageError("--scale must be finite and > 0");
+  }
+  return o;
+}
+
+// Progress on stderr once a build has run for a second: a bar on a terminal, percentage lines otherwise.
+std::function<void(double)> progressPrinter(Clock::time_point start) {
+  const bool tty = isatty(STDERR_FILENO);
+  auto last = std::make_shared<int>(-1);
+  return [=](double fraction) {
+    if (msSince(start) < 1000.0) return;
+    const int percent = static_cast<int>(fraction * 100.0);
+    if (percent == *last || (!tty && percent % 10 != 0 && percent != 100)) return;
+    *last = percent;
+    if (tty) {
+      const int width = 40, filled = percent * width / 100;
+      std::fprintf(stderr, "\rplacing spheres [%s%s] %3d%%", std::string(filled, '#').c_str(),
+                   std::string(width - filled, ' ').c_str(), percent);
+      if (percent == 100) std::fprintf(stderr, "\n");
+    } else {
+      std::fprintf(stderr, "placing spheres: %d%%\n", percent);
+    }
+  };
+}
+
+struct Loaded {
+  std::shared_ptr<TriangleMesh> mesh;
+  std::unique_ptr<ClodBuilder> builder;
+  double loadMs = 0.0;
+  double placementMs = 0.0;
+};
+
+Loaded loadAndPlace(const Args& args) {
+  Loaded l;
+  auto start = Clock::now();
+  l.mesh = std::make_shared<TriangleMesh>(loadMesh(args.get("--mesh"), loadOptions(args)));
+  l.loadMs = msSince(start);
+  start = Clock::now();
+  l.builder = std::make_unique<ClodBuilder>(l.mesh, std::make_shared<PaperPlacement>(0, progressPrinter(start)));
+  l.placementMs = msSince(start);
+  return l;
+}
+
+std::vector<Vec3> readProbes(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw UsageError("cannot open probe file '" + path + "'");
+  std::vector<Vec3> probes;
+  std::string line;
+  std::size_t lineNo = 0;
+  while (std::getline(in, line)) {
+    ++lineNo;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.find_first_not_of(" \t") == std::string::npos) continue;
+    std::stringstream ss(line);
+    std::string cell;
+    double v[3];
+    int k = 0;
+    bool ok = true;
+    while (std::getline(ss, cell, ',') && k < 4) {
+      if (k == 3) {
+        ok = false;
+        break;
+      }
+      char* end = nullptr;
+      v[k] = std::strtod(cell.c_str(), &end);
+      if (end == cell.c_str() || std::string(end).find_first_not_of(" \t") != std::string::npos) ok = false;
+      ++k;
+    }
+    if (!ok || k != 3) {
+      if (lineNo == 1 && probes.empty()) continue;  // header line
+      throw UsageError(path + ":" + std::to_string(lineNo) + ": expected 'x,y,z'");
+    }
+    probes.emplace_back(v[0], v[1], v[2]);
+  }
+  return probes;
+}
+
+DetectionMode modeArg(const Args& args, const char* fallback) {
+  DetectionMode mode;
+  const std::string m = args.get("--mode", fallback);
+  if (!parseDetectionMode(m.c_str(), mode)) throw UsageError("--mode must be exact, paper or spheres, got '" + m + "'");
+  return mode;
+}
+
+FastLevel fastArg(const Args& args) {
+  FastLevel level;
+  const std::string f = args.get("--fast", "hierarchy");
+  if (!parseFastLevel(f.c_str(), level)) throw UsageError("--fast must be hierarchy or flat, got '" + f + "'");
+  return level;
+}
+
+// Median per-query time: each query timed alone, minus the timer's own cost.
+struct Timing {
+  double meanNs;
+  double medianNs;
+};
+
+template <class Query>
+Timing timeQueries(std::size_t n, Query&& query) {
+  if (n == 0) return {0.0, 0.0};
+  // Mean: one clock pair around the whole run (twice, keep the faster to skip cold caches).
+  double mean = 1e300;
+  for (int rep = 0; rep < 2; ++rep) {
+    const auto start = Clock::now();
+    for (std::size_t i = 0; i < n; ++i) query(i);
+    mean = std::min(mean, std::chrono::duration<double, std::nano>(Clock::now() - start).count() / n);
+  }
+  std::vector<double> each(n), empty(std::min<std::size_t>(n, 10000));
+  for (auto& e : empty) {
+    const auto a = Clock::now();
+    const auto b = Clock::now();
+    e = std::chrono::duration<double, std::nano>(b - a).count();
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto a = Clock::now();
+    query(i);
+    const auto b = Clock::now();
+    each[i] = std::chrono::duration<double, std::nano>(b - a).count();
+  }
+  auto median = [](std::vector<double>& v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  const double overhead = median(empty);
+  return {mean, std::max(0.0, median(each) - overhead)};
+}
+
+int cmdBuild(int argc, char** argv) {
+  Args args(argc, argv, {"--mesh", "--scale", "--distance", "--out"}, {"--normalize", "--json"});
+  const double d = nonNegative(args, "--distance", 0.0, true);
+  const std::string out = args.get("--out");
+  Loaded l = loadAndPlace(args);
+  const auto start = Clock::now();
+  const ClodSphereSet set = l.builder->build(d);
+  const double clusterMs = msSince(start);
+  writeSphereSetYaml(set, out);
+  const double buildMs = l.placementMs + clusterMs;
+  if (args.has("--json")) {
+    std::printf(
+        "{\"command\":\"build\",\"mesh\":\"%s\",\"triangles\":%zu,\"distance\":%.17g,\"centres\":%zu,\"spheres\":%zu,"
+        "\"unpaired\":%zu,\"degenerate\":%zu,\"load_ms\":%.3f,\"placement_ms\":%.3f,\"clustering_ms\":%.3f,"
+        "\"build_ms\":%.3f,\"out\":\"%s\"}\n",
+        l.mesh->name.c_str(), l.mesh->size(), d, set.stats.centres, set.stats.spheres, set.stats.unpaired,
+        set.stats.degenerate, l.loadMs, l.placementMs, clusterMs, buildMs, out.c_str());
+  } else {
+    std::printf("mesh %s: %zu triangles (%zu without an opposite triangle, %zu zero-area)\n", l.mesh->name.c_str(),
+                l.mesh->size(), set.stats.unpaired, set.stats.degenerate);
+    std::printf("centres before clustering: %zu\ncentres after clustering (d = %g): %zu\n", set.stats.centres, d,
+                set.stats.spheres);
+    std::printf("build time: %.2f ms (placement %.2f ms, clustering %.2f ms); load %.2f ms\nwrote %s\n", buildMs,
+                l.placementMs, clusterMs, l.loadMs, out.c_str());
+  }
+  return 0;
+}
+
+int cmdQuery(int argc, char** argv) {
+  Args args(argc, argv, {"--mesh", "--scale", "--distance", "--radius", "--mode", "--probes", "--out", "--fast"},
+            {"--normalize", "--json"});
+  const double d = nonNegative(args, "--distance", 0.0, true);
+  const double r = nonNegative(args, "--radius", 0.0, true);
+  const DetectionMode mode = modeArg(args, "exact");
+  const FastLevel fast = fastArg(args);
+  const std::vector<Vec3> probes = readProbes(args.get("--probes"));
+  const std::string outPath = args.get("--out");
+  Loaded l = loadAndPlace(args);
+  auto start = Clock::now();
+  auto set = std::make_shared<const ClodSphereSet>(l.builder->build(d));
+  const double buildMs = l.placementMs + msSince(start);
+  const ClodDetector detector(l.mesh, set, fast);
+
+  std::vector<ContactResult> results(probes.size());
+  const Timing timing = timeQueries(probes.size(), [&](std::size_t i) { detector.query(probes[i], r, mode, results[i]); });
+
+  std::ofstream out(outPath);
+  if (!out) throw UsageError("cannot open '" + outPath + "' for writing");
+  out << "index,contact,distance,px,py,pz,triangle\n";
+  out.precision(17);
+  std::size_t contacts = 0;
+  for (std::size_t i = 0; i < probes.size(); ++i) {
+    const ContactResult& c = results[i];
+    if (c.contact) {
+      ++contacts;
+      out << i << ",1," << c.distance << ',' << c.point.x() << ',' << c.point.y() << ',' << c.point.z() << ','
+          << c.triangle << '\n';
+    } else {
+      out << i << ",0,,,,,\n";
+    }
+  }
+  if (!out) throw UsageError("writing '" + outPath + "' failed");
+  if (args.has("--json")) {
+    std::printf(
+        "{\"command\":\"query\",\"mesh\":\"%s\",\"triangles\":%zu,\"distance\":%.17g,\"radius\":%.17g,\"mode\":\"%s\","
+        "\"centres\":%zu,\"spheres\":%zu,\"probes\":%zu,\"contacts\":%zu,\"build_ms\":%.3f,"
+        "\"ns_per_query_mean\":%.2f,\"ns_per_query_median\":%.2f}\n",
+        l.mesh->name.c_str(), l.mesh->size(), d, r, toString(mode), set->stats.centres, set->stats.spheres,
+        probes.size(), contacts, buildMs, timing.meanNs, timing.medianNs);
+  } else {
+    std::printf("%zu probes, %zu contacts (mode %s, d = %g, r = %g, %zu spheres)\n", probes.size(), contacts,
+                toString(mode), d, r, set->stats.spheres);
+    std::printf("mean time per query: %.1f ns (median %.1f ns)\nwrote %s\n", timing.meanNs, timing.medianNs,
+                outPath.c_str());
+  }
+  return 0;
+}
+
+std::vector<double> parseList(const std::string& text) {
+  std::vector<double> values;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    const double v = Args::parseNumber("--distances", item);
+    if (!std::isfinite(v) || v < 0.0) throw UsageError("--distances must be finite numbers >= 0, got '" + item + "'");
+    values.push_back(v);
+  }
+  if (values.empty()) throw UsageError("--distances is empty");
+  return values;
+}
+
+int cmdSweep(int argc, char** argv) {
+  Args args(argc, argv, {"--mesh", "--scale", "--distances", "--radius", "--mode", "--fast", "--count"},
+            {"--normalize", "--json"});
+  const std::vector<double> distances = parseList(args.get("--distances"));
+  const double r = nonNegative(args, "--radius", 0.005, false);
+  const DetectionMode mode = modeArg(args, "exact");
+  if (mode == DetectionMode::Spheres) throw UsageError("sweep times a precise level: --mode exact or paper");
+  const FastLevel fast = fastArg(args);
+  const double count = nonNegative(args, "--count", 20000, false);
+  Loaded l = loadAndPlace(args);
+  // Probes near the surface (within 2r on either side), the stylus's working zone; fixed seed.
+  const std::vector<Vec3> probes = nearSurfaceProbes(*l.mesh, static_cast<std::size_t>(count), 2.0 * r, 20161129);
+
+  const bool json = args.has("--json");
+  if (!json) {
+    std::printf("mesh %s: %zu triangles, placement %.1f ms, %zu probes near the surface, r = %g, mode %s, fast %s\n",
+                l.mesh->name.c_str(), l.mesh->size(), l.placementMs, probes.size(), r, toString(mode),
+                fast == FastLevel::Flat ? "flat" : "hierarchy");
+    std::printf("%8s %9s %10s %11s %10s %10s %10s %10s %12s %9s\n", "d", "centres", "step_red%", "total_red%",
+                "build_ms", "fast_us", "precise_us", "total_us", "rate_Hz", "contacts");
+  } else {
+    std::printf("{\"command\":\"sweep\",\"mesh\":\"%s\",\"triangles\":%zu,\"radius\":%.17g,\"mode\":\"%s\","
+                "\"placement_ms\":%.3f,\"rows\":[",
+                l.mesh->name.c_str(), l.mesh->size(), r, toString(mode), l.placementMs);
+  }
+  double previous = 0.0, first = 0.0;
+  for (std::size_t k = 0; k < distances.size(); ++k) {
+    const auto start = Clock::now();
+    auto set = std::make_shared<const ClodSphereSet>(l.builder->build(distances[k]));
+    const double clusterMs = msSince(start);
+    const ClodDetector detector(l.mesh, set, fast);
+    ContactResult result;
+    std::size_t contacts = 0;
+    for (const Vec3& p : probes) {
+      detector.query(p, r, mode, result);
+      contacts += result.contact;
+    }
+    const Timing fastT = timeQueries(probes.size(), [&](std::size_t i) {
+      detector.query(probes[i], r, DetectionMode::Spheres, result);
+    });
+    const Timing totalT = timeQueries(probes.size(), [&](std::size_t i) { detector.query(probes[i], r, mode, result); });
+    const double centres = static_cast<double>(set->size());
+    if (k == 0) first = previous = centres;
+    const double step = previous > 0 ? 100.0 * (previous - centres) / previous : 0.0;
+    const double total = first > 0 ? 100.0 * (first - centres) / first : 0.0;
+    const double totalUs = totalT.meanNs / 1000.0, fastUs = fastT.meanNs / 1000.0;
+    const double preciseUs = std::max(0.0, totalUs - fastUs);
+    const double rate = totalUs > 0 ? 1e6 / totalUs : 0.0;
+    if (json) {
+      std::printf("%s{\"distance\":%.17g,\"centres\":%zu,\"step_reduction\":%.3f,\"total_reduction\":%.3f,"
+                  "\"build_ms\":%.3f,\"fast_us\":%.4f,\"precise_us\":%.4f,\"total_us\":%.4f,\"rate_hz\":%.1f,"
+                  "\"ns_per_query_median\":%.2f,\"contacts\":%zu}",
+                  k ? "," : "", distances[k], set->size(), step, total, l.placementMs + clusterMs, fastUs, preciseUs,
+                  totalUs, rate, totalT.medianNs, contacts);
+    } else {
+      std::printf("%8.4g %9zu %10.1f %11.1f %10.2f %10.4f %10.4f %10.4f %12.0f %9zu\n", distances[k], set->size(), step,
+                  total, l.placementMs + clusterMs, fastUs, preciseUs, totalUs, rate, contacts);
+    }
+    previous = centres;
+  }
+  if (json) std::printf("]}\n");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
+    std::fputs(kUsage, argc < 2 ? stderr : stdout);
+    return argc < 2 ? 2 : 0;
+  }
+  const std::string command = argv[1];
+  try {
+    if (command == "build") return cmdBuild(argc, argv);
+    if (command == "query") return cmdQuery(argc, argv);
+    if (command == "sweep") return cmdSweep(argc, argv);
+    throw UsageError("unknown command '" + command + "' (build, query or sweep)");
+  } catch (const UsageError& e) {
+    std::fprintf(stderr, "clod_tool: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "clod_tool: %s\n", e.what());
+    return 1;
+  }
+}
