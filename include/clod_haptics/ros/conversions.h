@@ -1,0 +1,58 @@
+#pragma once
+
+#include <string>
+
+#include <geometry_msgs/Pose.h>
+#include <geometry_msgs/WrenchStamped.h>
+#include <std_msgs/Header.h>
+
+#include "clod_haptics/Contact.h"
+#include "clod_haptics/SphereSet.h"
+#include "clod_haptics/core/contact.h"
+#include "clod_haptics/core/sphere_set.h"
+
+namespace clod_haptics {
+
+/** \brief Converts a core sphere set to its message (the header names the mesh frame). */
+void toMsg(const ClodSphereSet& set, const std_msgs::Header& header, SphereSet& msg);
+
+/**
+ * \brief Converts a sphere set message back to the core struct.
+ * \throws FormatError when a radius or centre is not finite or the offsets cannot be rebuilt.
+ */
+ClodSphereSet fromMsg(const SphereSet& msg);
+
+/**
+ * \brief Checks that a sphere set (from another node) fits a mesh: every triangle index in range,
+ * every triangle listed by at least one sphere whose radius reaches all three vertices (with a
+ * relative tolerance). Returns an empty string when it fits, else the reason. The detector relies
+ * on this invariant to miss no contact.
+ */
+std::string checkCoverage(const TriangleMesh& mesh, const ClodSphereSet& set, double relativeTolerance = 1e-9);
+
+/**
+ * \brief Fills a contact message from a core result; pointer and radius are the query's, in the
+ * mesh frame. Allocation-free apart from what the message already owns (header frame string).
+ */
+void toMsg(const ContactResult& result, const Vec3& pointer, double radius, Contact& msg);
+
+/**
+ * \brief The penalty spring force of a contact: stiffness * depth along the outward normal, clamped
+ * to maxForce when maxForce > 0; zero without contact. Torque is zero.
+ */
+Vec3 penaltyForce(const ContactResult& result, double stiffness, double maxForce = 0.0);
+
+/** \brief Writes a force into a wrench message (torque zero). */
+void toMsg(const Vec3& force, geometry_msgs::Wrench& msg);
+
+/** \brief True when every position and orientation component of the pose is finite. */
+bool isFinite(const geometry_msgs::Pose& pose);
+
+/** \brief Point message from an Eigen vector. */
+geometry_msgs::Point toPoint(const Vec3& v);
+/** \brief Vector3 message from an Eigen vector. */
+geometry_msgs::Vector3 toVector3(const Vec3& v);
+/** \brief Eigen vector from a Point message. */
+Vec3 fromPoint(const geometry_msgs::Point& p);
+
+}  // namespace clod_haptics

@@ -1,0 +1,151 @@
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <dynamic_reconfigure/server.h>
+#include <geometry_msgs/PoseStamped.h>
+#include <ros/callback_queue.h>
+#include <ros/ros.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+
+#include "clod_haptics/DetectorConfig.h"
+#include "clod_haptics/core/contact.h"
+#include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/sphere_set.h"
+
+namespace clod_haptics {
+
+/**
+ * \brief The detector glue shared by the nodelet and the standalone node: stylus pose in, contact
+ * and penalty force out, one of each per pose.
+ *
+ * Threads: poses arrive on the caller's node handle (the haptic path: a tf2 lookup when the frames
+ * differ, one allocation-free core query, two publishes). Markers, status and dynamic_reconfigure
+ * run on a private display queue with its own thread. A worker thread fetches a new level from
+ * sphere_builder (or builds it locally) and swaps it in with an atomic shared_ptr store, so no pose
+ * waits for a build.
+ */
+class HapticDetector {
+ public:
+  /**
+   * \brief Reads the parameters, loads the mesh and starts the threads; the first level arrives
+   * asynchronously (poses before it are answered by the brute-force reference).
+   * \throws MeshLoadError when ~mesh is missing, unresolvable or unreadable.
+   * \throws InvalidParameter for a bad ~scale, ~fast_level or ~detection_mode.
+   */
+  HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh);
+  ~HapticDetector();
+
+  HapticDetector(const HapticDetector&) = delete;
+  HapticDetector& operator=(const HapticDetector&) = delete;
+
+ private:
+  /** \brief One level as the hot path sees it. Immutable once published. */
+  struct Level {
+    std::shared_ptr<const ClodDetector> detector;
+    double distance = 0.0;
+    std::uint32_t spheres = 0;
+    std::string source;
+    double readyMs = 0.0;
+  };
+  /** \brief What the display thread needs of the last answered pose. */
+  struct LastQuery {
+    bool valid = false;
+    Vec3 pointer = Vec3::Zero();
+    double radius = 0.0;
+    ContactResult result;
+    EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+  };
+
+  void readParameters();
+  void onPose(const geometry_msgs::PoseStampedConstPtr& msg);
+  void onReconfigure(DetectorConfig& config, std::uint32_t level);
+  void requestLevel(double distance);
+  void levelWorker();
+  std::shared_ptr<const Level> makeLevel(double distance);
+  std::shared_ptr<const ClodSphereSet> fetchFromService(double distance, std::string& why);
+  void onDisplayTimer(const ros::SteadyTimerEvent& event);
+  void onStatusTimer(const ros::SteadyTimerEvent& event);
+  void publishStatus();
+  void publishMarkers();
+
+  ros::NodeHandle nh_;
+  ros::NodeHandle pnh_;
+  ros::CallbackQueue displayQueue_;
+  ros::NodeHandle displayPnh_;
+  std::unique_ptr<ros::AsyncSpinner> displaySpinner_;
+
+  // Parameters (fixed after construction).
+  std::string meshUri_;
+  std::string meshFrame_;
+  std::string poseTopic_;
+  std::string serviceName_;
+  double scale_ = 1.0;
+  bool normalize_ = false;
+  double serviceTimeout_ = 5.0;
+  bool useService_ = true;
+  int poseQueueSize_ = 100;
+  double markerRate_ = 30.0;
+  FastLevel fastLevel_ = FastLevel::Hierarchy;
+
+  std::shared_ptr<const TriangleMesh> mesh_;
+  std::unique_ptr<ClodBuilder> localBuilder_;  // lazily, on the worker thread only
+
+  // Settings the hot path reads (written by dynamic_reconfigure).
+  std::atomic<double> radius_{0.002};
+  std::atomic<double> stiffness_{500.0};
+  std::atomic<double> maxForce_{0.0};
+  std::atomic<int> mode_{static_cast<int>(DetectionMode::Exact)};
+  std::atomic<bool> showMesh_{true}, showSpheres_{true}, showHit_{true}, showContact_{true}, showPointer_{true};
+
+  // The current level: read with std::atomic_load, replaced with std::atomic_store.
+  std::shared_ptr<const Level> level_;
+
+  // Level worker.
+  std::thread worker_;
+  std::mutex workerMutex_;
+  std::condition_variable workerCv_;
+  bool stop_ = false;
+  bool pending_ = false;
+  double pendingDistance_ = 0.0;
+  std::atomic<double> requestedDistance_{0.0};
+
+  // Counters.
+  std::atomic<std::uint64_t> received_{0}, published_{0}, droppedNonFinite_{0}, droppedFrame_{0}, bruteForce_{0},
+      swaps_{0};
+
+  // Last query, for markers.
+  std::mutex lastMutex_;
+  LastQuery last_;
+
+  // Display state (display thread only, except staticDirty_).
+  std::atomic<bool> staticDirty_{true};
+  std::shared_ptr<const Level> shownLevel_;
+  std::size_t shownSpheres_ = 0;
+  std::size_t shownHit_ = 0;
+  std::vector<std::uint32_t> hitBuffer_;
+
+  tf2_ros::Buffer tfBuffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tfListener_;
+
+  boost::recursive_mutex configMutex_;
+  std::unique_ptr<dynamic_reconfigure::Server<DetectorConfig>> reconfigure_;
+
+  ros::Subscriber poseSub_;
+  ros::Publisher contactPub_;
+  ros::Publisher forcePub_;
+  ros::Publisher markerPub_;
+  ros::Publisher statusPub_;
+  ros::SteadyTimer displayTimer_;
+  ros::SteadyTimer statusTimer_;
+};
+
+}  // namespace clod_haptics

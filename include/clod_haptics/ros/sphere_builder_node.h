@@ -1,0 +1,70 @@
+#pragma once
+
+#include <cstddef>
+#include <future>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include <ros/ros.h>
+
+#include "clod_haptics/GetSphereSet.h"
+#include "clod_haptics/core/sphere_set.h"
+
+namespace clod_haptics {
+
+/**
+ * \brief The sphere_builder node: loads ~mesh once, serves ~get_sphere_set and publishes the
+ * default level latched on ~sphere_set. Each level is built once and cached; a request for a level
+ * being built waits for that build instead of starting a second one.
+ */
+class SphereBuilderNode {
+ public:
+  /**
+   * \brief Reads the parameters, loads the mesh, runs the placement, builds the default level and
+   * starts serving.
+   * \throws MeshLoadError when ~mesh is missing, unresolvable or unreadable.
+   * \throws InvalidParameter for a bad ~scale or ~default_distance.
+   */
+  SphereBuilderNode(ros::NodeHandle nh, ros::NodeHandle pnh);
+
+  /**
+   * \brief The level for d, built once (by the first caller) and cached. builtHere tells whether
+   * this call ran the build. Thread-safe.
+   * \throws InvalidParameter for a negative or non-finite d.
+   */
+  std::shared_ptr<const ClodSphereSet> level(double d, bool* builtHere = nullptr);
+
+  /** \brief How many builds ran (cache misses). */
+  std::size_t buildCount() const;
+
+  /** \brief The loaded mesh. */
+  const std::shared_ptr<const TriangleMesh>& mesh() const { return builder_->mesh(); }
+
+ private:
+  using Future = std::shared_future<std::shared_ptr<const ClodSphereSet>>;
+
+  void readParameters();
+  bool onGetSphereSet(GetSphereSet::Request& request, GetSphereSet::Response& response);
+  void evictIfFull();
+
+  ros::NodeHandle nh_;
+  ros::NodeHandle pnh_;
+  std::string meshUri_;
+  std::string frameId_;
+  double scale_ = 1.0;
+  bool normalize_ = false;
+  double defaultDistance_ = 0.003;
+  int cacheSize_ = 32;
+
+  std::unique_ptr<ClodBuilder> builder_;
+  mutable std::mutex cacheMutex_;
+  std::map<double, Future> cache_;
+  std::size_t builds_ = 0;
+
+  ros::Publisher setPub_;
+  ros::ServiceServer service_;
+};
+
+}  // namespace clod_haptics

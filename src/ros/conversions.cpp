@@ -1,0 +1,161 @@
+#include "clod_haptics/ros/conversions.h"
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "clod_haptics/core/errors.h"
+
+namespace clod_haptics {
+
+geometry_msgs::Point toPoint(const Vec3& v) {
+  geometry_msgs::Point p;
+  p.x = v.x();
+  p.y = v.y();
+  p.z = v.z();
+  return p;
+}
+
+geometry_msgs::Vector3 toVector3(const Vec3& v) {
+  geometry_msgs::Vector3 p;
+  p.x = v.x();
+  p.y = v.y();
+  p.z = v.z();
+  return p;
+}
+
+Vec3 fromPoint(const geometry_msgs::Point& p) { return Vec3(p.x, p.y, p.z); }
+
+void toMsg(const ClodSphereSet& set, const std_msgs::Header& header, SphereSet& msg) {
+  msg.header = header;
+  msg.mesh_name = set.meshName;
+  msg.scale = set.scale;
+  msg.distance = set.distance;
+  msg.spheres.resize(set.size());
+  for (std::size_t i = 0; i < set.size(); ++i) {
+    Sphere& s = msg.spheres[i];
+    s.center = toPoint(set.centres[i]);
+    s.radius = set.radii[i];
+    s.triangles.assign(set.begin(i), set.end(i));
+  }
+  const BuildStats& st = set.stats;
+  msg.stats.triangles = static_cast<std::uint32_t>(st.triangles);
+  msg.stats.centres = static_cast<std::uint32_t>(st.centres);
+  msg.stats.spheres = static_cast<std::uint32_t>(st.spheres);
+  msg.stats.unpaired = static_cast<std::uint32_t>(st.unpaired);
+  msg.stats.degenerate = static_cast<std::uint32_t>(st.degenerate);
+  msg.stats.max_triangles_per_sphere = static_cast<std::uint32_t>(st.maxTrianglesPerSphere);
+  msg.stats.mean_triangles_per_sphere = st.meanTrianglesPerSphere;
+  msg.stats.placement_ms = st.placementMs;
+  msg.stats.clustering_ms = st.clusteringMs;
+}
+
+ClodSphereSet fromMsg(const SphereSet& msg) {
+  ClodSphereSet set;
+  set.meshName = msg.mesh_name;
+  set.scale = msg.scale;
+  set.distance = msg.distance;
+  set.centres.reserve(msg.spheres.size());
+  set.radii.reserve(msg.spheres.size());
+  set.offsets.assign(1, 0);
+  set.offsets.reserve(msg.spheres.size() + 1);
+  std::size_t total = 0;
+  for (const Sphere& s : msg.spheres) total += s.triangles.size();
+  set.triangles.reserve(total);
+  for (std::size_t i = 0; i < msg.spheres.size(); ++i) {
+    const Sphere& s = msg.spheres[i];
+    const Vec3 c = fromPoint(s.center);
+    if (!c.allFinite() || !std::isfinite(s.radius) || s.radius < 0.0) {
+      throw FormatError("sphere set message: sphere " + std::to_string(i) + " has a non-finite centre or a bad radius");
+    }
+    set.centres.push_back(c);
+    set.radii.push_back(s.radius);
+    set.triangles.insert(set.triangles.end(), s.triangles.begin(), s.triangles.end());
+    set.offsets.push_back(static_cast<std::uint32_t>(set.triangles.size()));
+  }
+  set.stats.triangles = msg.stats.triangles;
+  set.stats.centres = msg.stats.centres;
+  set.stats.spheres = msg.stats.spheres;
+  set.stats.unpaired = msg.stats.unpaired;
+  set.stats.degenerate = msg.stats.degenerate;
+  set.stats.maxTrianglesPerSphere = msg.stats.max_triangles_per_sphere;
+  set.stats.meanTrianglesPerSphere = msg.stats.mean_triangles_per_sphere;
+  set.stats.placementMs = msg.stats.placement_ms;
+  set.stats.clusteringMs = msg.stats.clustering_ms;
+  return set;
+}
+
+std::string checkCoverage(const TriangleMesh& mesh, const ClodSphereSet& set, double relativeTolerance) {
+  if (set.centres.size() != set.radii.size() || set.offsets.size() != set.centres.size() + 1 ||
+      set.offsets.back() != set.triangles.size()) {
+    return "inconsistent array sizes";
+  }
+  const double tol = relativeTolerance * std::max(mesh.diagonal(), 1e-300);
+  std::vector<char> covered(mesh.size(), 0);
+  for (std::size_t i = 0; i < set.size(); ++i) {
+    if (set.offsets[i] > set.offsets[i + 1]) return "offsets decrease at sphere " + std::to_string(i);
+    for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t) {
+      if (*t >= mesh.size()) {
+        return "sphere " + std::to_string(i) + " lists triangle " + std::to_string(*t) + " but the mesh has " +
+               std::to_string(mesh.size());
+      }
+      for (int k = 0; k < 3; ++k) {
+        if ((mesh.vertex(*t, k) - set.centres[i]).norm() > set.radii[i] + tol) {
+          return "triangle " + std::to_string(*t) + " sticks out of sphere " + std::to_string(i) +
+                 " (is it the same mesh and scale?)";
+        }
+      }
+      covered[*t] = 1;
+    }
+  }
+  for (std::size_t t = 0; t < covered.size(); ++t) {
+    if (!covered[t]) return "triangle " + std::to_string(t) + " is in no sphere";
+  }
+  return {};
+}
+
+void toMsg(const ContactResult& result, const Vec3& pointer, double radius, Contact& msg) {
+  msg.in_contact = result.contact;
+  if (result.contact) {
+    msg.point = toPoint(result.point);
+    msg.normal = toVector3(result.normal);
+    msg.distance = result.distance;
+    msg.depth = result.depth;
+  } else {
+    msg.point = geometry_msgs::Point();
+    msg.normal = geometry_msgs::Vector3();
+    msg.distance = 0.0;
+    msg.depth = 0.0;
+  }
+  msg.triangle = result.contact ? result.triangle : -1;
+  msg.sphere = result.contact ? result.sphere : -1;
+  msg.spheres_hit = result.spheresHit;
+  msg.triangles_tested = result.trianglesTested;
+  msg.pointer = toPoint(pointer);
+  msg.pointer_radius = radius;
+}
+
+Vec3 penaltyForce(const ContactResult& result, double stiffness, double maxForce) {
+  if (!result.contact || !(result.depth > 0.0) || !(stiffness > 0.0)) return Vec3::Zero();
+  Vec3 f = stiffness * result.depth * result.normal;
+  if (!f.allFinite()) return Vec3::Zero();
+  if (maxForce > 0.0) {
+    const double n = f.norm();
+    if (n > maxForce) f *= maxForce / n;
+  }
+  return f;
+}
+
+void toMsg(const Vec3& force, geometry_msgs::Wrench& msg) {
+  msg.force = toVector3(force);
+  msg.torque = geometry_msgs::Vector3();
+}
+
+bool isFinite(const geometry_msgs::Pose& pose) {
+  const auto& p = pose.position;
+  const auto& q = pose.orientation;
+  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && std::isfinite(q.x) &&
+         std::isfinite(q.y) && std::isfinite(q.z) && std::isfinite(q.w);
+}
+
+}  // namespace clod_haptics

@@ -1,0 +1,378 @@
+#include "clod_haptics/ros/haptic_detector.h"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <geometry_msgs/WrenchStamped.h>
+#include <tf2/exceptions.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include "clod_haptics/Contact.h"
+#include "clod_haptics/DetectorStatus.h"
+#include "clod_haptics/GetSphereSet.h"
+#include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/mesh_loader.h"
+#include "clod_haptics/ros/conversions.h"
+#include "clod_haptics/ros/markers.h"
+#include "clod_haptics/ros/mesh_resource.h"
+
+namespace clod_haptics {
+
+namespace {
+double msSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+}  // namespace
+
+HapticDetector::HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh), displayPnh_(pnh) {
+  displayPnh_.setCallbackQueue(&displayQueue_);
+  readParameters();
+
+  const std::string path = resolveMeshPath(meshUri_);
+  MeshLoadOptions options;
+  options.scale = scale_;
+  options.normalize = normalize_;
+  mesh_ = std::make_shared<const TriangleMesh>(loadMesh(path, options));
+  ROS_INFO("detector: loaded '%s' (%zu triangles) in frame '%s'; poses from %s", path.c_str(), mesh_->size(),
+           meshFrame_.c_str(), nh_.resolveName(poseTopic_).c_str());
+
+  contactPub_ = pnh_.advertise<Contact>("contact", 100);
+  forcePub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("force", 100);
+  statusPub_ = pnh_.advertise<DetectorStatus>("status", 1, true);
+  // A new marker subscriber gets the mesh and spheres again.
+  markerPub_ = displayPnh_.advertise<visualization_msgs::MarkerArray>(
+      "markers", 10, [this](const ros::SingleSubscriberPublisher&) { staticDirty_ = true; }, ros::SubscriberStatusCallback());
+  tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_, nh_);
+
+  worker_ = std::thread(&HapticDetector::levelWorker, this);
+
+  // Calls onReconfigure with the ~ parameters (config/detector.yaml), which requests the first level.
+  reconfigure_ = std::make_unique<dynamic_reconfigure::Server<DetectorConfig>>(configMutex_, displayPnh_);
+  reconfigure_->setCallback([this](DetectorConfig& config, std::uint32_t level) { onReconfigure(config, level); });
+
+  poseSub_ = nh_.subscribe(poseTopic_, static_cast<std::uint32_t>(poseQueueSize_), &HapticDetector::onPose, this,
+                           ros::TransportHints().tcpNoDelay());
+  displayTimer_ = displayPnh_.createSteadyTimer(ros::WallDuration(1.0 / markerRate_), &HapticDetector::onDisplayTimer,
+                                                this);
+  statusTimer_ = displayPnh_.createSteadyTimer(ros::WallDuration(1.0), &HapticDetector::onStatusTimer, this);
+  displaySpinner_ = std::make_unique<ros::AsyncSpinner>(1, &displayQueue_);
+  displaySpinner_->start();
+  publishStatus();
+}
+
+HapticDetector::~HapticDetector() {
+  poseSub_.shutdown();
+  displayTimer_.stop();
+  statusTimer_.stop();
+  if (displaySpinner_) displaySpinner_->stop();
+  {
+    std::lock_guard<std::mutex> lock(workerMutex_);
+    stop_ = true;
+  }
+  workerCv_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+void HapticDetector::readParameters() {
+  if (!pnh_.getParam("mesh", meshUri_) || meshUri_.empty()) {
+    throw MeshLoadError("", "required parameter " + pnh_.resolveName("mesh") +
+                                " is not set (a mesh path or a package:// URI)");
+  }
+  pnh_.param<std::string>("frame_id", meshFrame_, "world");
+  pnh_.param<std::string>("pose_topic", poseTopic_, "/phantom/pose");
+  pnh_.param<std::string>("sphere_service", serviceName_, "sphere_builder/get_sphere_set");
+  pnh_.param("scale", scale_, 1.0);
+  pnh_.param("normalize", normalize_, false);
+  pnh_.param("use_service", useService_, true);
+  pnh_.param("service_timeout", serviceTimeout_, 5.0);
+  pnh_.param("pose_queue_size", poseQueueSize_, 100);
+  pnh_.param("marker_rate", markerRate_, 30.0);
+  std::string fast;
+  pnh_.param<std::string>("fast_level", fast, "hierarchy");
+  if (!std::isfinite(scale_) || scale_ <= 0.0) throw InvalidParameter("~scale must be finite and positive");
+  if (!parseFastLevel(fast.c_str(), fastLevel_)) {
+    throw InvalidParameter("~fast_level must be 'hierarchy' or 'flat', not '" + fast + "'");
+  }
+  if (!(markerRate_ > 0.0) || markerRate_ > 200.0) throw InvalidParameter("~marker_rate must be in (0, 200] Hz");
+  if (poseQueueSize_ < 1) throw InvalidParameter("~pose_queue_size must be at least 1");
+  std::string mode;
+  if (pnh_.getParam("detection_mode", mode)) {
+    DetectionMode parsed;
+    if (!parseDetectionMode(mode.c_str(), parsed)) {
+      throw InvalidParameter("~detection_mode must be exact, paper or spheres, not '" + mode + "'");
+    }
+  }
+}
+
+// ------------------------------------------------------------------------------------------------
+// The haptic path.
+
+void HapticDetector::onPose(const geometry_msgs::PoseStampedConstPtr& msg) {
+  received_.fetch_add(1, std::memory_order_relaxed);
+  if (!isFinite(msg->pose)) {
+    droppedNonFinite_.fetch_add(1, std::memory_order_relaxed);
+    ROS_WARN_THROTTLE(1.0, "detector: dropped a pose with a NaN or Inf component (%lu so far)",
+                      static_cast<unsigned long>(droppedNonFinite_.load()));
+    return;
+  }
+  const auto& position = msg->pose.position;
+  Vec3 p(position.x, position.y, position.z);
+  const std::string& poseFrame = msg->header.frame_id;
+  const bool transformed = !poseFrame.empty() && poseFrame != meshFrame_;
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
+  if (transformed) {
+    geometry_msgs::TransformStamped tf;
+    try {
+      try {
+        tf = tfBuffer_.lookupTransform(meshFrame_, poseFrame, msg->header.stamp);
+      } catch (const tf2::ExtrapolationException&) {
+        tf = tfBuffer_.lookupTransform(meshFrame_, poseFrame, ros::Time(0));  // latest known
+      }
+    } catch (const tf2::TransformException& e) {
+      droppedFrame_.fetch_add(1, std::memory_order_relaxed);
+      ROS_WARN_THROTTLE(1.0, "detector: dropped a pose in frame '%s': %s (%lu so far)", poseFrame.c_str(), e.what(),
+                        static_cast<unsigned long>(droppedFrame_.load()));
+      return;
+    }
+    const auto& q = tf.transform.rotation;
+    const auto& t = tf.transform.translation;
+    rotation = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized();
+    p = rotation * p + Vec3(t.x, t.y, t.z);
+  }
+
+  const double radius = radius_.load(std::memory_order_relaxed);
+  const auto mode = static_cast<DetectionMode>(mode_.load(std::memory_order_relaxed));
+  const std::shared_ptr<const Level> level = std::atomic_load(&level_);
+
+  ContactResult result;
+  const auto start = std::chrono::steady_clock::now();
+  if (level) {
+    level->detector->query(p, radius, mode, result);
+  } else {
+    result = bruteForceQuery(*mesh_, p, radius);  // no level yet: the reference answers
+    bruteForce_.fetch_add(1, std::memory_order_relaxed);
+  }
+  const auto elapsed = std::chrono::steady_clock::now() - start;
+
+  auto contact = boost::make_shared<Contact>();
+  contact->header.stamp = msg->header.stamp;
+  contact->header.frame_id = meshFrame_;
+  toMsg(result, p, radius, *contact);
+  contact->detection_time.fromNSec(std::chrono::duration_cast<std::chrono::nanoseconds>(elapsed).count());
+  contact->clustering_distance = level ? level->distance : std::numeric_limits<double>::quiet_NaN();
+  contact->level_spheres = level ? level->spheres : 0;
+
+  // The force in the pose's frame, where the device renders it.
+  const Vec3 forceMesh = penaltyForce(result, stiffness_.load(std::memory_order_relaxed),
+                                      maxForce_.load(std::memory_order_relaxed));
+  auto wrench = boost::make_shared<geometry_msgs::WrenchStamped>();
+  wrench->header.stamp = msg->header.stamp;
+  wrench->header.frame_id = poseFrame.empty() ? meshFrame_ : poseFrame;
+  toMsg(transformed ? Vec3(rotation.conjugate() * forceMesh) : forceMesh, wrench->wrench);
+
+  contactPub_.publish(contact);
+  forcePub_.publish(wrench);
+  published_.fetch_add(1, std::memory_order_relaxed);
+
+  std::lock_guard<std::mutex> lock(lastMutex_);
+  last_.valid = true;
+  last_.pointer = p;
+  last_.radius = radius;
+  last_.result = result;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Reconfigure and levels.
+
+void HapticDetector::onReconfigure(DetectorConfig& config, std::uint32_t /*level*/) {
+  DetectionMode mode;
+  if (parseDetectionMode(config.detection_mode.c_str(), mode)) {
+    mode_ = static_cast<int>(mode);
+  } else {
+    ROS_WARN("detector: unknown detection_mode '%s' (exact, paper or spheres); keeping %s",
+             config.detection_mode.c_str(), toString(static_cast<DetectionMode>(mode_.load())));
+    config.detection_mode = toString(static_cast<DetectionMode>(mode_.load()));
+  }
+  radius_ = config.pointer_radius;
+  stiffness_ = config.stiffness;
+  maxForce_ = config.max_force;
+  showMesh_ = config.show_mesh;
+  showSpheres_ = config.show_spheres;
+  showHit_ = config.show_hit_spheres;
+  showContact_ = config.show_contact;
+  showPointer_ = config.show_pointer;
+  staticDirty_ = true;
+  requestLevel(config.clustering_distance);
+}
+
+void HapticDetector::requestLevel(double distance) {
+  requestedDistance_ = distance;
+  {
+    std::lock_guard<std::mutex> lock(workerMutex_);
+    pendingDistance_ = distance;
+    pending_ = true;
+  }
+  workerCv_.notify_all();
+}
+
+void HapticDetector::levelWorker() {
+  for (;;) {
+    double distance;
+    {
+      std::unique_lock<std::mutex> lock(workerMutex_);
+      workerCv_.wait(lock, [this] { return stop_ || pending_; });
+      if (stop_) return;
+      distance = pendingDistance_;
+      pending_ = false;
+    }
+    const auto current = std::atomic_load(&level_);
+    if (current && current->distance == distance) continue;
+    try {
+      auto level = makeLevel(distance);
+      std::atomic_store(&level_, level);
+      swaps_.fetch_add(1, std::memory_order_relaxed);
+      staticDirty_ = true;
+      ROS_INFO("detector: level d = %g with %u spheres in use (%s, %.1f ms)", level->distance, level->spheres,
+               level->source.c_str(), level->readyMs);
+      publishStatus();
+    } catch (const std::exception& e) {
+      ROS_ERROR("detector: could not prepare level d = %g: %s; keeping the current level", distance, e.what());
+    }
+  }
+}
+
+std::shared_ptr<const ClodSphereSet> HapticDetector::fetchFromService(double distance, std::string& why) {
+  ros::ServiceClient client = nh_.serviceClient<GetSphereSet>(serviceName_);
+  if (!client.waitForExistence(ros::Duration(serviceTimeout_))) {
+    why = "service " + client.getService() + " not available";
+    return nullptr;
+  }
+  GetSphereSet srv;
+  srv.request.distance = distance;
+  if (!client.call(srv)) {
+    why = "call to " + client.getService() + " failed";
+    return nullptr;
+  }
+  if (!srv.response.success) {
+    why = "sphere_builder refused: " + srv.response.message;
+    return nullptr;
+  }
+  auto set = std::make_shared<ClodSphereSet>(fromMsg(srv.response.sphere_set));
+  const std::string mismatch = checkCoverage(*mesh_, *set, 1e-9);
+  if (!mismatch.empty()) {
+    why = "the served set does not fit this detector's mesh: " + mismatch;
+    return nullptr;
+  }
+  return set;
+}
+
+std::shared_ptr<const HapticDetector::Level> HapticDetector::makeLevel(double distance) {
+  const auto start = std::chrono::steady_clock::now();
+  auto level = std::make_shared<Level>();
+  std::shared_ptr<const ClodSphereSet> set;
+  if (useService_) {
+    std::string why;
+    set = fetchFromService(distance, why);
+    if (set) {
+      level->source = "service";
+    } else {
+      ROS_WARN("detector: %s; building level d = %g locally", why.c_str(), distance);
+    }
+  }
+  if (!set) {
+    if (!localBuilder_) localBuilder_ = std::make_unique<ClodBuilder>(mesh_);
+    set = std::make_shared<const ClodSphereSet>(localBuilder_->build(distance));
+    level->source = "local";
+  }
+  level->detector = std::make_shared<const ClodDetector>(mesh_, set, fastLevel_);
+  level->distance = distance;
+  level->spheres = static_cast<std::uint32_t>(set->size());
+  level->readyMs = msSince(start);
+  return level;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Display and status (display thread).
+
+void HapticDetector::onStatusTimer(const ros::SteadyTimerEvent&) { publishStatus(); }
+
+void HapticDetector::publishStatus() {
+  auto status = boost::make_shared<DetectorStatus>();
+  status->header.stamp = ros::Time::now();
+  status->header.frame_id = meshFrame_;
+  status->poses_received = received_.load();
+  status->contacts_published = published_.load();
+  status->dropped_non_finite = droppedNonFinite_.load();
+  status->dropped_unknown_frame = droppedFrame_.load();
+  status->answered_without_level = bruteForce_.load();
+  status->level_swaps = swaps_.load();
+  status->requested_distance = requestedDistance_.load();
+  const auto level = std::atomic_load(&level_);
+  status->clustering_distance = level ? level->distance : std::numeric_limits<double>::quiet_NaN();
+  status->level_spheres = level ? level->spheres : 0;
+  status->level_source = level ? level->source : "";
+  status->level_ready_ms = level ? level->readyMs : 0.0;
+  statusPub_.publish(status);
+}
+
+void HapticDetector::onDisplayTimer(const ros::SteadyTimerEvent&) {
+  if (markerPub_.getNumSubscribers() == 0) return;
+  publishMarkers();
+}
+
+void HapticDetector::publishMarkers() {
+  LastQuery last;
+  {
+    std::lock_guard<std::mutex> lock(lastMutex_);
+    last = last_;
+  }
+  const auto level = std::atomic_load(&level_);
+  auto array = boost::make_shared<visualization_msgs::MarkerArray>();
+  std_msgs::Header header;
+  header.frame_id = meshFrame_;
+  header.stamp = ros::Time(0);
+
+  if (staticDirty_.exchange(false) || level != shownLevel_) {
+    if (showMesh_) {
+      array->markers.push_back(meshMarker(*mesh_, header, makeColor(0.75f, 0.75f, 0.78f, 1.0f)));
+    } else {
+      array->markers.push_back(deleteMarker(marker_ns::kMesh, 0, header));
+    }
+    if (level && showSpheres_) {
+      appendSphereMarkers(*level->detector->spheres(), nullptr, marker_ns::kSpheres, header,
+                          makeColor(0.2f, 0.45f, 1.0f, 0.18f), shownSpheres_, *array);
+      shownSpheres_ = level->spheres;
+    } else {
+      static const ClodSphereSet empty;
+      appendSphereMarkers(empty, nullptr, marker_ns::kSpheres, header, makeColor(0, 0, 0, 0), shownSpheres_, *array);
+      shownSpheres_ = 0;
+    }
+    shownLevel_ = level;
+  }
+
+  if (last.valid) {
+    hitBuffer_.clear();
+    if (level && showHit_) level->detector->hitSpheres(last.pointer, last.radius, hitBuffer_);
+    const ClodSphereSet* set = level ? level->detector->spheres().get() : nullptr;
+    static const ClodSphereSet empty;
+    appendSphereMarkers(set ? *set : empty, &hitBuffer_, marker_ns::kHitSpheres, header,
+                        makeColor(1.0f, 0.55f, 0.0f, 0.55f), shownHit_, *array);
+    shownHit_ = set ? hitBuffer_.size() : 0;
+
+    ContactResult shown = last.result;
+    if (!showContact_) shown.contact = false;
+    appendContactMarkers(shown, std::max(8.0 * last.radius, 0.01), header, *array);
+    if (showPointer_) {
+      array->markers.push_back(pointerMarker(last.pointer, last.radius, header,
+                                             last.result.contact ? makeColor(1.0f, 0.2f, 0.2f, 0.9f)
+                                                                 : makeColor(0.1f, 0.9f, 0.2f, 0.9f)));
+    } else {
+      array->markers.push_back(deleteMarker(marker_ns::kPointer, 0, header));
+    }
+  }
+  if (!array->markers.empty()) markerPub_.publish(array);
+}
+
+}  // namespace clod_haptics

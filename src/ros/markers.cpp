@@ -1,0 +1,103 @@
+#include "clod_haptics/ros/markers.h"
+
+#include "clod_haptics/ros/conversions.h"
+
+namespace clod_haptics {
+
+namespace {
+
+visualization_msgs::Marker baseMarker(const char* ns, int id, int type, const std_msgs::Header& header) {
+  visualization_msgs::Marker m;
+  m.header = header;
+  m.ns = ns;
+  m.id = id;
+  m.type = type;
+  m.action = visualization_msgs::Marker::ADD;
+  m.pose.orientation.w = 1.0;
+  m.scale.x = m.scale.y = m.scale.z = 1.0;
+  m.frame_locked = true;
+  return m;
+}
+
+}  // namespace
+
+std_msgs::ColorRGBA makeColor(float r, float g, float b, float a) {
+  std_msgs::ColorRGBA c;
+  c.r = r;
+  c.g = g;
+  c.b = b;
+  c.a = a;
+  return c;
+}
+
+visualization_msgs::Marker meshMarker(const TriangleMesh& mesh, const std_msgs::Header& header,
+                                      const std_msgs::ColorRGBA& color) {
+  visualization_msgs::Marker m = baseMarker(marker_ns::kMesh, 0, visualization_msgs::Marker::TRIANGLE_LIST, header);
+  m.color = color;
+  m.points.reserve(mesh.size() * 3);
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
+    for (int k = 0; k < 3; ++k) m.points.push_back(toPoint(mesh.vertex(t, k)));
+  }
+  return m;
+}
+
+void appendSphereMarkers(const ClodSphereSet& set, const std::vector<std::uint32_t>* indices, const char* ns,
+                         const std_msgs::Header& header, const std_msgs::ColorRGBA& color, std::size_t previousCount,
+                         visualization_msgs::MarkerArray& out) {
+  const std::size_t n = indices ? indices->size() : set.size();
+  out.markers.reserve(out.markers.size() + std::max(n, previousCount));
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = indices ? (*indices)[k] : k;
+    if (i >= set.size()) continue;
+    visualization_msgs::Marker m = baseMarker(ns, static_cast<int>(k), visualization_msgs::Marker::SPHERE, header);
+    m.pose.position = toPoint(set.centres[i]);
+    m.scale.x = m.scale.y = m.scale.z = 2.0 * set.radii[i];
+    m.color = color;
+    out.markers.push_back(std::move(m));
+  }
+  for (std::size_t k = n; k < previousCount; ++k) out.markers.push_back(deleteMarker(ns, static_cast<int>(k), header));
+}
+
+visualization_msgs::Marker pointerMarker(const Vec3& p, double radius, const std_msgs::Header& header,
+                                         const std_msgs::ColorRGBA& color) {
+  visualization_msgs::Marker m = baseMarker(marker_ns::kPointer, 0, visualization_msgs::Marker::SPHERE, header);
+  m.pose.position = toPoint(p);
+  m.scale.x = m.scale.y = m.scale.z = 2.0 * radius;
+  m.color = color;
+  return m;
+}
+
+void appendContactMarkers(const ContactResult& result, double arrowLength, const std_msgs::Header& header,
+                          visualization_msgs::MarkerArray& out) {
+  if (!result.contact) {
+    out.markers.push_back(deleteMarker(marker_ns::kContact, 0, header));
+    out.markers.push_back(deleteMarker(marker_ns::kNormal, 0, header));
+    return;
+  }
+  visualization_msgs::Marker point = baseMarker(marker_ns::kContact, 0, visualization_msgs::Marker::SPHERE, header);
+  point.pose.position = toPoint(result.point);
+  point.scale.x = point.scale.y = point.scale.z = 0.25 * arrowLength;
+  point.color = makeColor(1.0f, 0.1f, 0.1f, 1.0f);
+  out.markers.push_back(std::move(point));
+
+  visualization_msgs::Marker arrow = baseMarker(marker_ns::kNormal, 0, visualization_msgs::Marker::ARROW, header);
+  arrow.points.push_back(toPoint(result.point));
+  arrow.points.push_back(toPoint(result.point + arrowLength * result.normal));
+  arrow.scale.x = 0.06 * arrowLength;  // shaft diameter
+  arrow.scale.y = 0.15 * arrowLength;  // head diameter
+  arrow.scale.z = 0.25 * arrowLength;  // head length
+  arrow.color = makeColor(1.0f, 0.9f, 0.0f, 1.0f);
+  out.markers.push_back(std::move(arrow));
+}
+
+visualization_msgs::Marker deleteMarker(const char* ns, int id, const std_msgs::Header& header) {
+  visualization_msgs::Marker m;
+  m.header = header;
+  m.ns = ns;
+  m.id = id;
+  m.action = visualization_msgs::Marker::DELETE;
+  m.pose.orientation.w = 1.0;
+  return m;
+}
+
+}  // namespace clod_haptics
