@@ -1,0 +1,126 @@
+#pragma once
+// Helpers shared by the core tests: fixture paths, the coverage check computed directly from the
+// definition, and a small parallel loop (the brute-force reference is O(triangles) per probe).
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "clod_haptics/core/mesh.h"
+#include "clod_haptics/core/mesh_loader.h"
+#include "clod_haptics/core/sphere_set.h"
+#include "clod_haptics/test_config.h"
+
+namespace clod_test {
+
+using namespace clod_haptics;
+
+/** \brief Path of a fixture in the repository's test/data. */
+inline std::string testData(const std::string& name) { return std::string(CLOD_TEST_DATA_DIR) + "/" + name; }
+
+/**
+ * \brief Every mesh file in ../shared/data/meshes, sorted. A missing or empty directory is a test
+ * failure (CI has it), never a silent skip.
+ */
+inline std::vector<std::string> sharedMeshes() {
+  std::vector<std::string> out;
+  std::error_code ec;
+  const std::filesystem::path dir(CLOD_SHARED_MESH_DIR);
+  if (!std::filesystem::is_directory(dir, ec)) {
+    ADD_FAILURE() << "shared mesh directory missing: " << dir << " (set CLOD_SHARED_DIR when configuring)";
+    return out;
+  }
+  for (const auto& entry : std::filesystem::directory_iterator(dir, ec))
+    if (entry.is_regular_file()) out.push_back(entry.path().string());
+  std::sort(out.begin(), out.end());
+  if (out.empty()) ADD_FAILURE() << "shared mesh directory is empty: " << dir;
+  return out;
+}
+
+/** \brief Path of one shared mesh; a missing file is a test failure. */
+inline std::string sharedMesh(const std::string& name) {
+  const std::string path = std::string(CLOD_SHARED_MESH_DIR) + "/" + name;
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) ADD_FAILURE() << "shared mesh missing: " << path;
+  return path;
+}
+
+/** \brief File name without the directory, for messages. */
+inline std::string baseName(const std::string& path) { return std::filesystem::path(path).filename().string(); }
+
+/** \brief Loads a mesh normalised into the unit cube. */
+inline std::shared_ptr<const TriangleMesh> loadNormalized(const std::string& path) {
+  MeshLoadOptions options;
+  options.normalize = true;
+  return std::make_shared<const TriangleMesh>(loadMesh(path, options));
+}
+
+/**
+ * \brief Checks the coverage invariant from its definition: every triangle has its three vertices
+ * within the radius (times 1 + relTol, plus relTol of the model size) of at least one sphere that
+ * lists it. Also checks the flat arrays are well formed and finite. Returns the problems found.
+ */
+inline std::vector<std::string> coverageProblems(const TriangleMesh& mesh, const ClodSphereSet& set,
+                                                 double relTol = 1e-12) {
+  std::vector<std::string> problems;
+  auto report = [&](const std::string& what) {
+    if (problems.size() < 20) problems.push_back(what);
+  };
+  if (set.radii.size() != set.centres.size() || set.offsets.size() != set.centres.size() + 1 ||
+      set.offsets.front() != 0 || set.offsets.back() != set.triangles.size()) {
+    report("malformed flat arrays");
+    return problems;
+  }
+  const double size = mesh.diagonal();
+  std::vector<char> covered(mesh.size(), 0);
+  for (std::size_t i = 0; i < set.size(); ++i) {
+    if (set.offsets[i] > set.offsets[i + 1]) {
+      report("offsets decrease at sphere " + std::to_string(i));
+      return problems;
+    }
+    if (!set.centres[i].allFinite() || !std::isfinite(set.radii[i]) || set.radii[i] < 0.0)
+      report("sphere " + std::to_string(i) + " has a non-finite centre or a bad radius");
+    const double reach = set.radii[i] * (1.0 + relTol) + relTol * size;
+    for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t) {
+      if (*t >= mesh.size()) {
+        report("sphere " + std::to_string(i) + " lists triangle " + std::to_string(*t) + " out of range");
+        continue;
+      }
+      bool inside = true;
+      for (int k = 0; k < 3; ++k) inside = inside && (mesh.vertex(*t, k) - set.centres[i]).norm() <= reach;
+      if (inside) covered[*t] = 1;
+    }
+  }
+  for (std::size_t t = 0; t < mesh.size(); ++t)
+    if (!covered[t]) report("triangle " + std::to_string(t) + " is inside no sphere that lists it");
+  return problems;
+}
+
+/** \brief Joins problems into one message. */
+inline std::string join(const std::vector<std::string>& lines) {
+  std::ostringstream out;
+  for (const auto& l : lines) out << "\n  " << l;
+  return out.str();
+}
+
+/** \brief Runs body(begin, end) over [0, n) split into contiguous chunks on `threads` threads. */
+inline void parallelFor(std::size_t n, unsigned threads, const std::function<void(std::size_t, std::size_t)>& body) {
+  threads = std::max(1u, threads);
+  std::vector<std::thread> pool;
+  const std::size_t chunk = (n + threads - 1) / threads;
+  for (unsigned k = 0; k < threads; ++k) {
+    const std::size_t begin = std::min(n, k * chunk), end = std::min(n, begin + chunk);
+    if (begin < end) pool.emplace_back(body, begin, end);
+  }
+  for (auto& th : pool) th.join();
+}
+
+}  // namespace clod_test
