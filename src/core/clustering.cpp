@@ -81,6 +81,108 @@ class CellTable {
   std::size_t mask_ = 0;
 };
 
+// Unites every pair of points closer than d (Euclidean, strict), touching each pair of cells once.
+// Cells have side d / sqrt(3) (shrunk a little against rounding), so points of one cell are
+// normally all closer than d: each is linked to the cell's first point after an exact check, and
+// a point that fails it ("loose", only possible through rounding) is checked against every
+// neighbour point itself. Between two cells whose first points are already in one cluster nothing
+// is tested; otherwise point pairs are tested until one link is found, which joins the two cells.
+// Every union is backed by an exact distance test, so the result equals naive single-link.
+void linkCloserThan(const std::vector<Vec3>& points, double d, UnionFind& uf) {
+  const std::size_t n = points.size();
+  Eigen::AlignedBox3d box;
+  for (const Vec3& p : points) box.extend(p);
+  const double extent =
+      std::max({box.sizes().maxCoeff(), box.min().cwiseAbs().maxCoeff(), box.max().cwiseAbs().maxCoeff()});
+  // Never finer than 1e-12 of the extent: keeps cell coordinates far from integer overflow.
+  const double cell = std::max(d / std::sqrt(3.0) * (1.0 - 1e-6), extent * 1e-12);
+  const int reach = static_cast<int>(std::ceil(d / cell));  // 2 for the usual cell size
+  std::vector<CellKey> keys(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 q = (points[i] - box.min()) / cell;
+    keys[i] = {static_cast<std::int64_t>(std::floor(q.x())), static_cast<std::int64_t>(std::floor(q.y())),
+               static_cast<std::int64_t>(std::floor(q.z()))};
+  }
+  // Bucket the points by cell (expected O(n)): number the cells, count, prefix sum, fill.
+  CellTable table(n);
+  std::vector<std::size_t> runOf(n);
+  std::vector<std::size_t> runCount;
+  std::vector<CellKey> runKey;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::size_t& r = table.run(table.insert(keys[i]));
+    if (r == 0) {
+      runCount.push_back(0);
+      runKey.push_back(keys[i]);
+      r = runCount.size();  // 1-based so 0 means unnumbered
+    }
+    runOf[i] = r - 1;
+    ++runCount[r - 1];
+  }
+  const std::size_t cells = runCount.size();
+  std::vector<std::size_t> runStart(cells + 1, 0);
+  for (std::size_t c = 0; c < cells; ++c) runStart[c + 1] = runStart[c] + runCount[c];
+  std::vector<std::uint32_t> sorted(n);
+  {
+    std::vector<std::size_t> fill(runStart.begin(), runStart.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) sorted[fill[runOf[i]]++] = static_cast<std::uint32_t>(i);
+  }
+  const double d2 = d * d;
+  auto close = [&](std::uint32_t a, std::uint32_t b) { return (points[a] - points[b]).squaredNorm() < d2; };
+
+  // Within each cell: link to the first point; collect the loose ones.
+  std::vector<char> loose(n, 0);
+  std::vector<std::uint32_t> looseList;
+  for (std::size_t c = 0; c < cells; ++c) {
+    const std::uint32_t first = sorted[runStart[c]];
+    for (std::size_t j = runStart[c] + 1; j < runStart[c + 1]; ++j) {
+      if (close(first, sorted[j])) {
+        uf.unite(first, sorted[j]);
+      } else {
+        loose[sorted[j]] = 1;
+        looseList.push_back(sorted[j]);
+      }
+    }
+  }
+  // Between cells: each unordered pair of neighbouring cells once (the lexicographically forward half).
+  for (std::size_t c = 0; c < cells; ++c) {
+    const CellKey k = runKey[c];
+    const std::uint32_t repA = sorted[runStart[c]];
+    for (int dx = 0; dx <= reach; ++dx)
+      for (int dy = (dx == 0 ? 0 : -reach); dy <= reach; ++dy)
+        for (int dz = (dx == 0 && dy == 0 ? 1 : -reach); dz <= reach; ++dz) {
+          const std::size_t* run = table.find({k.x + dx, k.y + dy, k.z + dz});
+          if (run == nullptr) continue;
+          const std::size_t c2 = *run - 1;
+          const std::uint32_t repB = sorted[runStart[c2]];
+          if (uf.find(repA) == uf.find(repB)) continue;
+          bool linked = false;
+          for (std::size_t a = runStart[c]; a < runStart[c + 1] && !linked; ++a) {
+            if (loose[sorted[a]]) continue;
+            for (std::size_t b = runStart[c2]; b < runStart[c2 + 1]; ++b) {
+              if (loose[sorted[b]]) continue;
+              if (close(sorted[a], sorted[b])) {
+                uf.unite(sorted[a], sorted[b]);
+                linked = true;
+                break;
+              }
+            }
+          }
+        }
+  }
+  // Loose points: test against every point around them, in both directions.
+  for (const std::uint32_t i : looseList) {
+    const CellKey k = keys[i];
+    for (int dx = -reach; dx <= reach; ++dx)
+      for (int dy = -reach; dy <= reach; ++dy)
+        for (int dz = -reach; dz <= reach; ++dz) {
+          const std::size_t* run = table.find({k.x + dx, k.y + dy, k.z + dz});
+          if (run == nullptr) continue;
+          for (std::size_t b = runStart[*run - 1]; b < runStart[*run]; ++b)
+            if (sorted[b] != i && close(i, sorted[b])) uf.unite(i, sorted[b]);
+        }
+  }
+}
+
 }  // namespace
 
 std::uint32_t SingleLinkClustering::cluster(const std::vector<Vec3>& points, double d,
@@ -91,64 +193,7 @@ std::uint32_t SingleLinkClustering::cluster(const std::vector<Vec3>& points, dou
   labels.assign(n, 0);
   if (n == 0) return 0;
   UnionFind uf(n);
-  if (d > 0.0) {
-    Eigen::AlignedBox3d box;
-    for (const Vec3& p : points) box.extend(p);
-    const double extent =
-        std::max({box.sizes().maxCoeff(), box.min().cwiseAbs().maxCoeff(), box.max().cwiseAbs().maxCoeff()});
-    // A cell never smaller than d keeps every pair closer than d within neighbouring cells; the floor
-    // keeps cell coordinates far from integer overflow for a tiny d.
-    const double cell = std::max(d, extent * 1e-12);
-    std::vector<CellKey> keys(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      const Vec3 q = (points[i] - box.min()) / cell;
-      keys[i] = {static_cast<std::int64_t>(std::floor(q.x())), static_cast<std::int64_t>(std::floor(q.y())),
-                 static_cast<std::int64_t>(std::floor(q.z()))};
-    }
-    // Bucket the points by cell: count, prefix sum, fill (expected O(n)).
-    CellTable table(n);
-    std::vector<std::size_t> slotOf(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::size_t s = table.insert(keys[i]);
-      slotOf[i] = s;
-    }
-    // Number the cells and lay out their runs.
-    std::vector<std::size_t> runStart, runCount;
-    {
-      for (std::size_t i = 0; i < n; ++i) {
-        std::size_t& r = table.run(slotOf[i]);
-        if (r == 0) {
-          runCount.push_back(0);
-          r = runCount.size();  // 1-based so 0 means unnumbered
-        }
-        ++runCount[r - 1];
-      }
-      runStart.assign(runCount.size() + 1, 0);
-      for (std::size_t c = 0; c < runCount.size(); ++c) runStart[c + 1] = runStart[c] + runCount[c];
-    }
-    std::vector<std::uint32_t> sorted(n);
-    {
-      std::vector<std::size_t> fill(runStart.begin(), runStart.end() - 1);
-      for (std::size_t i = 0; i < n; ++i) sorted[fill[table.run(slotOf[i]) - 1]++] = static_cast<std::uint32_t>(i);
-    }
-    const double d2 = d * d;
-    for (std::size_t i = 0; i < n; ++i) {
-      const CellKey& k = keys[i];
-      const Vec3& p = points[i];
-      for (int dx = -1; dx <= 1; ++dx)
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dz = -1; dz <= 1; ++dz) {
-            const std::size_t* run = table.find({k.x + dx, k.y + dy, k.z + dz});
-            if (run == nullptr) continue;
-            const std::size_t c = *run - 1;
-            for (std::size_t j = runStart[c]; j < runStart[c + 1]; ++j) {
-              const std::uint32_t q = sorted[j];
-              if (q <= i) continue;  // each pair once
-              if ((points[q] - p).squaredNorm() < d2) uf.unite(static_cast<std::uint32_t>(i), q);
-            }
-          }
-    }
-  }
+  if (d > 0.0) linkCloserThan(points, d, uf);
   // Label clusters in the order of their first point.
   std::vector<std::uint32_t> id(n, std::numeric_limits<std::uint32_t>::max());
   std::uint32_t count = 0;

@@ -15,6 +15,8 @@ bool parseFastLevel(const char* text, FastLevel& level) {
     level = FastLevel::Flat;
   } else if (std::strcmp(text, "hierarchy") == 0) {
     level = FastLevel::Hierarchy;
+  } else if (std::strcmp(text, "grid") == 0) {
+    level = FastLevel::Grid;
   } else {
     return false;
   }
@@ -38,7 +40,7 @@ constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
 }
 
 ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
-                           FastLevel fastLevel)
+                           FastLevel fastLevel, double gridRadius)
     : mesh_(std::move(mesh)), spheres_(std::move(spheres)), fastLevel_(fastLevel) {
   const TriangleMesh& m = *mesh_;
   const ClodSphereSet& s = *spheres_;
@@ -52,17 +54,42 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
     for (int v = 0; v < 3; ++v)
       for (int k = 0; k < 3; ++k) corners_[9 * t + 3 * v + k] = m.vertex(t, v)[k];
 
+  triangleBall_.resize(4 * m.size());
+  for (std::size_t t = 0; t < m.size(); ++t) {
+    const Vec3 c = m.centroid(t);
+    double r2 = 0.0;
+    for (int v = 0; v < 3; ++v) r2 = std::max(r2, (m.vertex(t, v) - c).squaredNorm());
+    for (int k = 0; k < 3; ++k) triangleBall_[4 * t + k] = c[k];
+    triangleBall_[4 * t + 3] = std::sqrt(r2) + pad_;
+  }
+
   sphereData_.resize(4 * s.size());
   for (std::size_t i = 0; i < s.size(); ++i) {
     for (int k = 0; k < 3; ++k) sphereData_[4 * i + k] = s.centres[i][k];
     sphereData_[4 * i + 3] = s.radii[i] + pad_;
   }
 
-  if (fastLevel_ == FastLevel::Hierarchy) {
+  sphereOfTriangle_.assign(m.size(), kNone);
+  for (std::size_t i = s.size(); i-- > 0;)
+    for (const std::uint32_t* t = s.begin(i); t != s.end(i); ++t) sphereOfTriangle_[*t] = static_cast<std::uint32_t>(i);
+
+  if (fastLevel_ == FastLevel::Grid) {
+    const double radius = gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * bounds.diagonal().norm();
+    if (radius > 0.0) grid_ = CellGrid(m, s, radius);
+  }
+  if (fastLevel_ != FastLevel::Flat) {
     std::vector<Eigen::AlignedBox3d> boxes(s.size());
     for (std::size_t i = 0; i < s.size(); ++i)
       boxes[i] = Eigen::AlignedBox3d(s.centres[i] - Vec3::Constant(s.radii[i]), s.centres[i] + Vec3::Constant(s.radii[i]));
     buildBoxTree(boxes, 4, pad_, sphereNodes_, sphereOrder_);
+    std::vector<Eigen::AlignedBox3d> tight(s.size());
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      tight[i].setEmpty();
+      for (const std::uint32_t* t = s.begin(i); t != s.end(i); ++t)
+        for (int v = 0; v < 3; ++v) tight[i].extend(m.vertex(*t, v));
+      tight[i] = tight[i].intersection(boxes[i]);
+    }
+    buildBoxTree(tight, 1, pad_, tightNodes_, tightOrder_);
 
     triangleRoot_.assign(s.size(), kNone);
     triangleOrder_.reserve(s.triangles.size());
@@ -91,10 +118,14 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
 
 inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode,
                                        Best& best) const {
+  ++best.tested;
+  // A ball around the triangle rejects it cheaply when it cannot beat the current best.
+  const double* ball = triangleBall_.data() + 4 * tri;
+  const double bx = p.x() - ball[0], by = p.y() - ball[1], bz = p.z() - ball[2], reach = ball[3] + best.reach;
+  if (bx * bx + by * by + bz * bz > reach * reach) return;
   const double* c = corners_.data() + 9 * tri;
   const Vec3 a(c[0], c[1], c[2]), b(c[3], c[4], c[5]), cc(c[6], c[7], c[8]);
   Vec3 q;
-  ++best.tested;
   if (mode == DetectionMode::Exact) {
     q = closestPointOnTriangle(p, a, b, cc);
   } else if (!projectInsideTriangle(p, a, b, cc, mesh_->normals[tri], q)) {
@@ -145,10 +176,49 @@ void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMod
   }
 }
 
+void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const {
+  const std::uint64_t key = grid_.keyOf(p);
+  const CellGrid::Cell* cell;
+  if (cache != nullptr && cache->owner == this && cache->key == key) {
+    cell = static_cast<const CellGrid::Cell*>(cache->cell);
+    ++cache->hits;
+  } else {
+    cell = grid_.find(key);
+  }
+  if (cache != nullptr) {
+    if (cache->owner != this) cache->lastTriangle = -1;
+    cache->owner = this;
+    cache->key = key;
+    cache->cell = cell;
+  }
+  if (cell == nullptr) return;  // no triangle within the grid radius of this cell: no precise work
+  best.hits = cell->spheres;
+  // Start from the last contact: a close triangle found first lets the sorted scan stop early.
+  if (cache != nullptr && cache->lastTriangle >= 0 && static_cast<std::size_t>(cache->lastTriangle) < mesh_->size()) {
+    const auto last = static_cast<std::uint32_t>(cache->lastTriangle);
+    testTriangle(last, sphereOfTriangle_[last], p, mode, best);
+  }
+  const Vec3 centre = grid_.centreOf(key);
+  const Vec3 rel = p - centre;
+  const double offset = rel.norm() + pad_;
+  const double slack = grid_.slack();
+  const CellGrid::Entry* e = grid_.entries(*cell);
+  for (std::uint32_t i = 0; i < cell->count; ++i) {
+    const double dc = e[i].centreDistance;
+    // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
+    if (dc - offset > best.reach) break;
+    // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.
+    const double bound = dc + rel.x() * e[i].direction[0] + rel.y() * e[i].direction[1] + rel.z() * e[i].direction[2];
+    if (bound - slack > best.reach) continue;
+    testTriangle(e[i].triangle, sphereOfTriangle_[e[i].triangle], p, mode, best);
+  }
+}
+
 template <class Visit>
-void ClodDetector::forEachHitSphere(double px, double py, double pz, const double& reach, Visit&& visit) const {
+void ClodDetector::forEachHitSphere(double px, double py, double pz, const double& reach, bool tight,
+                                    Visit&& visit) const {
   const double* sd = sphereData_.data();
-  if (fastLevel_ == FastLevel::Flat || sphereNodes_.empty()) {
+  if (fastLevel_ == FastLevel::Flat || sphereNodes_.empty() || (tight && tightNodes_.empty())) {
     const std::size_t n = spheres_->size();
     for (std::size_t i = 0; i < n; ++i) {
       const double dx = px - sd[4 * i], dy = py - sd[4 * i + 1], dz = pz - sd[4 * i + 2];
@@ -160,13 +230,14 @@ void ClodDetector::forEachHitSphere(double px, double py, double pz, const doubl
   std::uint32_t stack[64];
   int top = 0;
   stack[top++] = 0;
-  const BoxNode* nodes = sphereNodes_.data();
+  const BoxNode* nodes = tight ? tightNodes_.data() : sphereNodes_.data();
+  const std::uint32_t* order = tight ? tightOrder_.data() : sphereOrder_.data();
   while (top > 0) {
     const BoxNode& node = nodes[stack[--top]];
     if (squaredDistanceToNode(node, px, py, pz) > reach * reach) continue;
     if (node.count > 0) {
       for (std::uint32_t j = node.first; j < node.first + node.count; ++j) {
-        const std::uint32_t i = sphereOrder_[j];
+        const std::uint32_t i = order[j];
         const double dx = px - sd[4 * i], dy = py - sd[4 * i + 1], dz = pz - sd[4 * i + 2];
         const double rr = sd[4 * i + 3] + reach;
         if (dx * dx + dy * dy + dz * dz <= rr * rr) visit(i);
@@ -186,7 +257,8 @@ void ClodDetector::forEachHitSphere(double px, double py, double pz, const doubl
   }
 }
 
-void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactResult& out) const noexcept {
+void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
+                         QueryCache* cache) const noexcept {
   out = ContactResult{};
   if (!p.allFinite() || !std::isfinite(r) || r < 0.0) return;
   Best best;
@@ -199,7 +271,7 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
     double bestGap = std::numeric_limits<double>::infinity();
     std::uint32_t bestSphere = kNone;
     const double reach = r;
-    forEachHitSphere(p.x(), p.y(), p.z(), reach, [&](std::uint32_t i) {
+    forEachHitSphere(p.x(), p.y(), p.z(), reach, false, [&](std::uint32_t i) {
       ++best.hits;
       const double gap = std::sqrt((p - Vec3(sd[4 * i], sd[4 * i + 1], sd[4 * i + 2])).squaredNorm()) - spheres_->radii[i];
       if (gap < bestGap || (gap == bestGap && i < bestSphere)) {
@@ -221,14 +293,18 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
     return;
   }
 
-  const bool tree = fastLevel_ == FastLevel::Hierarchy && !triangleRoot_.empty();
-  forEachHitSphere(p.x(), p.y(), p.z(), best.reach, [&](std::uint32_t i) {
-    ++best.hits;
-    if (tree)
-      preciseTree(i, p, mode, best);
-    else
-      preciseFlat(i, p, mode, best);
-  });
+  if (!grid_.empty() && r <= grid_.radius()) {
+    preciseGrid(p, mode, best, cache);
+  } else {
+    const bool tree = fastLevel_ != FastLevel::Flat && !triangleRoot_.empty();
+    forEachHitSphere(p.x(), p.y(), p.z(), best.reach, tree, [&](std::uint32_t i) {
+      ++best.hits;
+      if (tree)
+        preciseTree(i, p, mode, best);
+      else
+        preciseFlat(i, p, mode, best);
+    });
+  }
   out.spheresHit = best.hits;
   out.trianglesTested = best.tested;
   if (!best.found) return;
@@ -239,13 +315,14 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
   out.triangle = static_cast<std::int32_t>(best.triangle);
   out.sphere = static_cast<std::int32_t>(best.sphere);
   out.normal = contactNormal(p, best.point, mesh_->normals[best.triangle]);
+  if (cache != nullptr) cache->lastTriangle = out.triangle;
 }
 
 void ClodDetector::hitSpheres(const Vec3& p, double r, std::vector<std::uint32_t>& out) const {
   out.clear();
   if (!p.allFinite() || !std::isfinite(r) || r < 0.0) return;
   const double reach = r;
-  forEachHitSphere(p.x(), p.y(), p.z(), reach, [&](std::uint32_t i) { out.push_back(i); });
+  forEachHitSphere(p.x(), p.y(), p.z(), reach, false, [&](std::uint32_t i) { out.push_back(i); });
   std::sort(out.begin(), out.end());
 }
 

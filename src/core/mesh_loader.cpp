@@ -62,6 +62,14 @@ void collect(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent
 
 }  // namespace
 
+double signedVolume(const TriangleMesh& mesh) {
+  const Vec3 c = mesh.bounds().center();
+  double v = 0.0;
+  for (std::size_t t = 0; t < mesh.size(); ++t)
+    v += (mesh.vertex(t, 0) - c).dot((mesh.vertex(t, 1) - c).cross(mesh.vertex(t, 2) - c));
+  return v / 6.0;
+}
+
 void transformMesh(TriangleMesh& mesh, const MeshLoadOptions& options) {
   if (options.normalize) {
     const Eigen::AlignedBox3d box = mesh.bounds();
@@ -116,6 +124,11 @@ TriangleMesh loadMesh(const std::string& path, const MeshLoadOptions& options) {
   std::string name = std::filesystem::path(path).filename().string();
   TriangleMesh mesh = makeMesh(std::move(vertices), std::move(triangles), name);
   transformMesh(mesh, options);
+  if (options.orientOutward && signedVolume(mesh) < 0.0) {
+    for (Triangle& t : mesh.triangles) std::swap(t[1], t[2]);
+    for (Vec3& n : mesh.normals) n = -n;
+    mesh.flipped = true;
+  }
   return mesh;
 }
 

@@ -31,9 +31,9 @@ const char* kUsage =
     "usage:\n"
     "  clod_tool build --mesh M [--scale S | --normalize] --distance D --out SPHERES.yaml [--json]\n"
     "  clod_tool query --mesh M [--scale S | --normalize] --distance D --radius R --mode exact|paper|spheres\n"
-    "                  --probes P.csv --out RESULT.csv [--fast hierarchy|flat] [--json]\n"
+    "                  --probes P.csv --out RESULT.csv [--fast grid|hierarchy|flat] [--json]\n"
     "  clod_tool sweep --mesh M [--scale S | --normalize] --distances 0,0.01,...,0.08 [--radius R]\n"
-    "                  [--mode exact|paper] [--fast hierarchy|flat] [--count N] [--json]\n";
+    "                  [--mode exact|paper] [--fast grid|hierarchy|flat] [--count N] [--json]\n";
 
 /** \brief A bad command line: printed as one line, exit code 2. */
 struct UsageError : std::runtime_error {
@@ -182,8 +182,8 @@ DetectionMode modeArg(const Args& args, const char* fallback) {
 
 FastLevel fastArg(const Args& args) {
   FastLevel level;
-  const std::string f = args.get("--fast", "hierarchy");
-  if (!parseFastLevel(f.c_str(), level)) throw UsageError("--fast must be hierarchy or flat, got '" + f + "'");
+  const std::string f = args.get("--fast", "grid");
+  if (!parseFastLevel(f.c_str(), level)) throw UsageError("--fast must be grid, hierarchy or flat, got '" + f + "'");
   return level;
 }
 
@@ -331,9 +331,9 @@ int cmdSweep(int argc, char** argv) {
   if (!json) {
     std::printf("mesh %s: %zu triangles, placement %.1f ms, %zu probes near the surface, r = %g, mode %s, fast %s\n",
                 l.mesh->name.c_str(), l.mesh->size(), l.placementMs, probes.size(), r, toString(mode),
-                fast == FastLevel::Flat ? "flat" : "hierarchy");
-    std::printf("%8s %9s %10s %11s %10s %10s %10s %10s %12s %9s\n", "d", "centres", "step_red%", "total_red%",
-                "build_ms", "fast_us", "precise_us", "total_us", "rate_Hz", "contacts");
+                fast == FastLevel::Flat ? "flat" : fast == FastLevel::Grid ? "grid" : "hierarchy");
+    std::printf("%8s %9s %10s %11s %10s %10s %10s %10s %12s %9s %8s %8s\n", "d", "centres", "step_red%",
+                "total_red%", "build_ms", "fast_us", "precise_us", "total_us", "rate_Hz", "contacts", "spheres", "tris");
   } else {
     std::printf("{\"command\":\"sweep\",\"mesh\":\"%s\",\"triangles\":%zu,\"radius\":%.17g,\"mode\":\"%s\","
                 "\"placement_ms\":%.3f,\"rows\":[",
@@ -347,10 +347,15 @@ int cmdSweep(int argc, char** argv) {
     const ClodDetector detector(l.mesh, set, fast);
     ContactResult result;
     std::size_t contacts = 0;
+    double spheresHit = 0.0, trianglesTested = 0.0;
     for (const Vec3& p : probes) {
       detector.query(p, r, mode, result);
       contacts += result.contact;
+      spheresHit += result.spheresHit;
+      trianglesTested += result.trianglesTested;
     }
+    spheresHit /= std::max<std::size_t>(1, probes.size());
+    trianglesTested /= std::max<std::size_t>(1, probes.size());
     const Timing fastT = timeQueries(probes.size(), [&](std::size_t i) {
       detector.query(probes[i], r, DetectionMode::Spheres, result);
     });
@@ -365,12 +370,14 @@ int cmdSweep(int argc, char** argv) {
     if (json) {
       std::printf("%s{\"distance\":%.17g,\"centres\":%zu,\"step_reduction\":%.3f,\"total_reduction\":%.3f,"
                   "\"build_ms\":%.3f,\"fast_us\":%.4f,\"precise_us\":%.4f,\"total_us\":%.4f,\"rate_hz\":%.1f,"
-                  "\"ns_per_query_median\":%.2f,\"contacts\":%zu}",
+                  "\"ns_per_query_median\":%.2f,\"contacts\":%zu,\"spheres_hit_mean\":%.2f,"
+                  "\"triangles_tested_mean\":%.2f}",
                   k ? "," : "", distances[k], set->size(), step, total, l.placementMs + clusterMs, fastUs, preciseUs,
-                  totalUs, rate, totalT.medianNs, contacts);
+                  totalUs, rate, totalT.medianNs, contacts, spheresHit, trianglesTested);
     } else {
-      std::printf("%8.4g %9zu %10.1f %11.1f %10.2f %10.4f %10.4f %10.4f %12.0f %9zu\n", distances[k], set->size(), step,
-                  total, l.placementMs + clusterMs, fastUs, preciseUs, totalUs, rate, contacts);
+      std::printf("%8.4g %9zu %10.1f %11.1f %10.2f %10.4f %10.4f %10.4f %12.0f %9zu %8.1f %8.1f\n", distances[k],
+                  set->size(), step, total, l.placementMs + clusterMs, fastUs, preciseUs, totalUs, rate, contacts,
+                  spheresHit, trianglesTested);
     }
     previous = centres;
   }

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "clod_haptics/core/box_tree.h"
+#include "clod_haptics/core/cell_grid.h"
 #include "clod_haptics/core/contact.h"
 #include "clod_haptics/core/mesh.h"
 #include "clod_haptics/core/sphere_set.h"
@@ -15,9 +16,23 @@ namespace clod_haptics {
 enum class FastLevel : std::uint8_t {
   Flat,       ///< the paper: the pointer against every sphere, then every triangle a hit sphere lists
   Hierarchy,  ///< a box tree over the spheres, then a box tree over each sphere's triangles; O(log n)
+  Grid,       ///< the fast level precomputed per grid cell (CellGrid), O(1); Hierarchy beyond its radius
 };
 
-/** \brief Parses "flat" or "hierarchy"; returns false for anything else. */
+/**
+ * \brief Per-stream state for temporal coherence: a haptic pointer moves little between two
+ * queries, so the last cell and the last contact triangle are tried first. Owned by the caller (one
+ * per stylus stream, not shared between threads); the answer is the same with or without it.
+ */
+struct QueryCache {
+  const void* owner = nullptr;        ///< the detector that filled it; another detector ignores it
+  std::uint64_t key = ~0ull;          ///< last grid cell
+  const void* cell = nullptr;         ///< that cell's record (null: empty cell)
+  std::int32_t lastTriangle = -1;     ///< last contact triangle
+  std::uint64_t hits = 0;             ///< queries that reused the cell (statistics)
+};
+
+/** \brief Parses "flat", "hierarchy" or "grid"; returns false for anything else. */
 bool parseFastLevel(const char* text, FastLevel& level);
 
 /**
@@ -29,15 +44,21 @@ bool parseFastLevel(const char* text, FastLevel& level);
  */
 class ClodDetector {
  public:
-  /** \brief Prepares the flat arrays and trees; the mesh and set are kept alive by the pointers. */
+  /**
+   * \brief Prepares the flat arrays and trees; the mesh and set are kept alive by the pointers.
+   * \param gridRadius for FastLevel::Grid, the largest pointer radius the grid serves (larger ones use
+   * the hierarchy); 0 picks 1% of the model's diagonal.
+   */
   ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
-               FastLevel fastLevel = FastLevel::Hierarchy);
+               FastLevel fastLevel = FastLevel::Grid, double gridRadius = 0.0);
 
   /**
    * \brief Answers whether the pointer (centre p, radius r) touches the mesh, and where.
-   * A non-finite p or r, or a negative r, answers no contact.
+   * A non-finite p or r, or a negative r, answers no contact. cache (optional) carries temporal
+   * coherence between the queries of one stream.
    */
-  void query(const Vec3& p, double r, DetectionMode mode, ContactResult& out) const noexcept;
+  void query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
+             QueryCache* cache = nullptr) const noexcept;
 
   /** \brief Indices of the spheres the pointer overlaps (for display; allocates into out). */
   void hitSpheres(const Vec3& p, double r, std::vector<std::uint32_t>& out) const;
@@ -52,10 +73,11 @@ class ClodDetector {
  private:
   struct Best;
   template <class Visit>
-  void forEachHitSphere(double px, double py, double pz, const double& reach, Visit&& visit) const;
+  void forEachHitSphere(double px, double py, double pz, const double& reach, bool tight, Visit&& visit) const;
   void preciseFlat(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
   void preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
   void testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
+  void preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const;
 
   std::shared_ptr<const TriangleMesh> mesh_;
   std::shared_ptr<const ClodSphereSet> spheres_;
@@ -65,12 +87,20 @@ class ClodDetector {
   // Flat copies for the cache: triangle corners (9 doubles each) and padded spheres (x, y, z, radius).
   std::vector<double> corners_;
   std::vector<double> sphereData_;
-  // Hierarchy: tree over spheres, and one tree per sphere over its triangles.
+  std::vector<double> triangleBall_;  // per triangle: centroid and padded radius reaching its vertices
+  // Hierarchy: trees over the spheres, and one tree per sphere over its triangles. The ball tree bounds
+  // each sphere's ball (spheres mode, display); the tight tree bounds each sphere by the box of the
+  // triangles it wraps intersected with its ball, the region where a precise contact through it can lie.
   std::vector<BoxNode> sphereNodes_;
   std::vector<std::uint32_t> sphereOrder_;
+  std::vector<BoxNode> tightNodes_;
+  std::vector<std::uint32_t> tightOrder_;
   std::vector<BoxNode> triangleNodes_;
   std::vector<std::uint32_t> triangleOrder_;  // triangle indices in per-sphere leaf order
   std::vector<std::uint32_t> triangleRoot_;   // per sphere: root in triangleNodes_
+  // Grid: the fast level per cell, and the first sphere listing each triangle.
+  CellGrid grid_;
+  std::vector<std::uint32_t> sphereOfTriangle_;
 };
 
 }  // namespace clod_haptics

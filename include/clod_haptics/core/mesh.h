@@ -28,6 +28,7 @@ struct TriangleMesh {
   std::vector<Vec3> normals;        ///< unit face normal per triangle, or zero for a zero-area triangle
   double scale = 1.0;               ///< factor applied to the source coordinates
   Vec3 offset = Vec3::Zero();       ///< translation applied after scaling (normalising only)
+  bool flipped = false;             ///< windings were reversed at load to make normals point outward
 
   /** \brief Number of triangles. */
   std::size_t size() const { return triangles.size(); }

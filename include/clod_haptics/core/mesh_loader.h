@@ -15,7 +15,17 @@ struct MeshLoadOptions {
    * kept. The paper's clustering distances 0 to 0.08 assume a model of about that size.
    */
   bool normalize = false;
+  /**
+   * \brief Reverse every triangle's winding when the mesh's signed volume is negative, so normals
+   * point outward: the paper's rays go inward along -n and the contact normal pushes the stylus out.
+   * The test is global (one decision for the whole mesh); it is meaningful for closed or nearly
+   * closed meshes and harmless for open ones.
+   */
+  bool orientOutward = true;
 };
+
+/** \brief Signed volume of the mesh relative to its bounds' centre (negative: normals point inward). */
+double signedVolume(const TriangleMesh& mesh);
 
 /**
  * \brief Loads any format assimp reads (OBJ, STL, PLY, OFF, DAE, ...), triangulated, with the node
