@@ -62,27 +62,54 @@ std::vector<PlacedSphere> PaperPlacement::place(const TriangleMesh& mesh, Placem
         if (normal.isZero(0.0)) continue;
         const Vec3 origin = mesh.centroid(t);
         const Vec3 dir = -normal;
-        // Gather the smallest dot and, per candidate, keep only what decides: first pass finds the
-        // smallest dot, second pass (same hits, re-enumerated) the nearest hit under the threshold.
-        double minDot = std::numeric_limits<double>::infinity();
-        bvh.forEachRayHit(origin, dir, std::numeric_limits<double>::infinity(), [&](std::uint32_t tri, double dist) {
-          if (tri == t || dist <= minT) return;
-          minDot = std::min(minDot, mesh.normals[tri].dot(normal));
-        });
-        if (!std::isfinite(minDot)) continue;
-        const int k = firstAdmittingStep(minDot);
-        const double tau = kTau0 + kTauStep * k;
+        // First pass, nearest first with pruning: a hit with dot < -0.99 (the first threshold) decides
+        // at once, and the nearest such hit is the answer, so farther nodes are skipped.
+        const double tau0 = kTau0;
+        double tMax = std::numeric_limits<double>::infinity();
         double bestT = std::numeric_limits<double>::infinity();
         std::uint32_t best = std::numeric_limits<std::uint32_t>::max();
-        bvh.forEachRayHit(origin, dir, std::numeric_limits<double>::infinity(), [&](std::uint32_t tri, double dist) {
+        double minDot = std::numeric_limits<double>::infinity();
+        // Hits seen by the first pass, kept so the relaxation rarely needs a second pass.
+        constexpr int kKeep = 64;
+        Hit kept[kKeep];
+        int seen = 0;
+        bvh.forEachRayHit(origin, dir, tMax, [&](std::uint32_t tri, double dist) {
           if (tri == t || dist <= minT) return;
-          if (mesh.normals[tri].dot(normal) < tau && (dist < bestT || (dist == bestT && tri < best))) {
+          const double dot = mesh.normals[tri].dot(normal);
+          minDot = std::min(minDot, dot);
+          if (seen < kKeep) kept[seen] = {tri, dist, dot};
+          ++seen;
+          if (dot < tau0 && (dist < bestT || (dist == bestT && tri < best))) {
             bestT = dist;
             best = tri;
+            tMax = dist;  // nothing farther can win; ties at exactly dist are still reported
+            tMax = std::nextafter(tMax, std::numeric_limits<double>::infinity());
           }
         });
+        int k = 0;
+        if (best == std::numeric_limits<std::uint32_t>::max()) {
+          // No hit under the first threshold (the pass saw every hit): relax to the first admitting step.
+          if (!std::isfinite(minDot)) continue;
+          k = firstAdmittingStep(minDot);
+          const double tau = kTau0 + kTauStep * k;
+          auto consider = [&](std::uint32_t tri, double dist, double dot) {
+            if (dot < tau && (dist < bestT || (dist == bestT && tri < best))) {
+              bestT = dist;
+              best = tri;
+            }
+          };
+          if (seen <= kKeep) {
+            for (int h = 0; h < seen; ++h) consider(kept[h].triangle, kept[h].t, kept[h].dot);
+          } else {
+            double all = std::numeric_limits<double>::infinity();
+            bvh.forEachRayHit(origin, dir, all, [&](std::uint32_t tri, double dist) {
+              if (tri == t || dist <= minT) return;
+              consider(tri, dist, mesh.normals[tri].dot(normal));
+            });
+          }
+        }
         opposite[t] = best;
-        steps[t] = static_cast<std::uint16_t>(k);
+        steps[t] = static_cast<std::uint16_t>(std::min(k, 65535));
       }
     }
   };

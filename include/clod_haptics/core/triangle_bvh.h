@@ -29,10 +29,11 @@ class TriangleBvh {
 
   /**
    * \brief Calls hit(triangle, t) for every triangle the ray origin + t dir meets at 0 < t < tMax.
-   * Order is unspecified. Allocates nothing.
+   * The callback may lower tMax (it is read again after each hit), which prunes farther nodes;
+   * nearer children are visited first. Allocates nothing.
    */
   template <class Hit>
-  void forEachRayHit(const Vec3& origin, const Vec3& dir, double tMax, Hit&& hit) const;
+  void forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMax, Hit&& hit) const;
 
   /** \brief The nodes, root first. */
   const std::vector<Node>& nodes() const { return nodes_; }
@@ -46,18 +47,14 @@ class TriangleBvh {
 };
 
 template <class Hit>
-void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double tMax, Hit&& hit) const {
+void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMax, Hit&& hit) const {
   if (nodes_.empty()) return;
   double inv[3];
   for (int k = 0; k < 3; ++k) inv[k] = 1.0 / dir[k];  // +-inf for a zero component is fine for the slab test
-  std::uint32_t stack[64];
-  int top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const Node& node = nodes_[stack[--top]];
+  // Entry distance of the ray into a node's box, or +inf when it misses within (0, tMax).
+  auto enter = [&](const Node& node) {
     double t0 = 0.0, t1 = tMax;
-    bool miss = false;
-    for (int k = 0; k < 3 && !miss; ++k) {
+    for (int k = 0; k < 3; ++k) {
       double ta = (node.lo[k] - origin[k]) * inv[k];
       double tb = (node.hi[k] - origin[k]) * inv[k];
       if (ta > tb) std::swap(ta, tb);
@@ -65,9 +62,21 @@ void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double tMax
       if (tb != tb) tb = 1e300;
       t0 = ta > t0 ? ta : t0;
       t1 = tb < t1 ? tb : t1;
-      miss = t0 > t1;
+      if (t0 > t1) return 1e308;
     }
-    if (miss) continue;
+    return t0;
+  };
+  struct Item {
+    std::uint32_t node;
+    double t;
+  };
+  Item stack[64];
+  int top = 0;
+  if (enter(nodes_[0]) < 1e308) stack[top++] = {0, 0.0};
+  while (top > 0) {
+    const Item item = stack[--top];
+    if (item.t > tMax) continue;
+    const Node& node = nodes_[item.node];
     if (node.count > 0) {
       for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
         const std::uint32_t tri = order_[i];
@@ -76,9 +85,15 @@ void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double tMax
           hit(tri, t);
       }
     } else {
-      const std::uint32_t self = static_cast<std::uint32_t>(&node - nodes_.data());
-      stack[top++] = node.first;
-      stack[top++] = self + 1;
+      const std::uint32_t left = item.node + 1, right = node.first;
+      const double tl = enter(nodes_[left]), tr = enter(nodes_[right]);
+      if (tl <= tr) {
+        if (tr < 1e308) stack[top++] = {right, tr};
+        if (tl < 1e308) stack[top++] = {left, tl};
+      } else {
+        if (tl < 1e308) stack[top++] = {left, tl};
+        if (tr < 1e308) stack[top++] = {right, tr};
+      }
     }
   }
 }
