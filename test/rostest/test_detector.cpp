@@ -1,0 +1,337 @@
+// rostest of the detector (node or nodelet, chosen by the .test file): poses in, contacts and forces
+// out, each checked against the core's brute-force reference; bad inputs; tf2; reconfigure.
+// Parameters (~): mesh, scale, normalize (same as the detector's), detector (its namespace),
+// pose_frame (frame the test publishes poses in), mesh_in_pose_frame ([x y z yaw pitch roll], the
+// mesh frame's pose in pose_frame as given to static_transform_publisher; empty: same frame).
+#include <atomic>
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include <dynamic_reconfigure/Reconfigure.h>
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/WrenchStamped.h>
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <tf2_ros/static_transform_broadcaster.h>
+
+#include "clod_haptics/Contact.h"
+#include "clod_haptics/DetectorStatus.h"
+#include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/mesh_loader.h"
+#include "clod_haptics/core/probes.h"
+#include "clod_haptics/ros/mesh_resource.h"
+
+namespace clod_haptics {
+namespace {
+
+/** Talks to one detector: publishes poses with unique stamps and collects the answers by stamp. */
+class DetectorClient {
+ public:
+  DetectorClient() : pnh_("~") {
+    pnh_.param<std::string>("detector", ns_, "/detector");
+    pnh_.param<std::string>("pose_frame", poseFrame_, "world");
+    std::string meshUri;
+    pnh_.getParam("mesh", meshUri);
+    MeshLoadOptions options;
+    pnh_.param("scale", options.scale, 1.0);
+    pnh_.param("normalize", options.normalize, false);
+    mesh_ = loadMesh(resolveMeshPath(meshUri), options);
+    std::vector<double> tf;
+    if (pnh_.getParam("mesh_in_pose_frame", tf) && tf.size() == 6) {
+      // static_transform_publisher x y z yaw pitch roll: rotation = Rz(yaw) Ry(pitch) Rx(roll).
+      meshToPose_ = Eigen::Translation3d(tf[0], tf[1], tf[2]) * Eigen::AngleAxisd(tf[3], Vec3::UnitZ()) *
+                    Eigen::AngleAxisd(tf[4], Vec3::UnitY()) * Eigen::AngleAxisd(tf[5], Vec3::UnitX());
+      // Debian has no static_transform_publisher binary: the test broadcasts the static transform itself.
+      std::string meshFrame;
+      pnh_.param<std::string>("mesh_frame", meshFrame, "mesh");
+      geometry_msgs::TransformStamped t;
+      t.header.stamp = ros::Time::now();
+      t.header.frame_id = poseFrame_;
+      t.child_frame_id = meshFrame;
+      t.transform.translation.x = tf[0];
+      t.transform.translation.y = tf[1];
+      t.transform.translation.z = tf[2];
+      const Eigen::Quaterniond q(meshToPose_.linear());
+      t.transform.rotation.x = q.x();
+      t.transform.rotation.y = q.y();
+      t.transform.rotation.z = q.z();
+      t.transform.rotation.w = q.w();
+      staticBroadcaster_.sendTransform(t);
+    }
+    ros::NodeHandle dnh(ns_);
+    dnh.param("pointer_radius", radius_, 0.002);
+    dnh.param("stiffness", stiffness_, 500.0);
+    posePub_ = nh_.advertise<geometry_msgs::PoseStamped>("/phantom/pose", 1000);
+    contactSub_ = nh_.subscribe(ns_ + "/contact", 10000, &DetectorClient::onContact, this);
+    forceSub_ = nh_.subscribe(ns_ + "/force", 10000, &DetectorClient::onForce, this);
+    statusSub_ = nh_.subscribe(ns_ + "/status", 10, &DetectorClient::onStatus, this);
+  }
+
+  /** Waits for the first level and the connections. */
+  bool waitReady(double seconds = 60.0) {
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    while (ros::ok() && ros::WallTime::now() < end) {
+      if (status().level_spheres > 0 && posePub_.getNumSubscribers() > 0 && contactSub_.getNumPublishers() > 0 &&
+          forceSub_.getNumPublishers() > 0)
+        return true;
+      ros::WallDuration(0.02).sleep();
+    }
+    return false;
+  }
+
+  /** Publishes a pose (position in the pose frame) with a fresh unique stamp; returns the stamp. */
+  ros::Time publish(const Vec3& positionInPoseFrame, const std::string& frame = "", double nanValue = 0.0) {
+    geometry_msgs::PoseStamped pose;
+    pose.header.frame_id = frame.empty() ? poseFrame_ : frame;
+    pose.header.stamp = nextStamp();
+    pose.pose.position.x = positionInPoseFrame.x() + nanValue;
+    pose.pose.position.y = positionInPoseFrame.y();
+    pose.pose.position.z = positionInPoseFrame.z();
+    pose.pose.orientation.w = 1.0;
+    posePub_.publish(pose);
+    return pose.header.stamp;
+  }
+
+  /** Waits for the contact and the force of a stamp. */
+  bool waitAnswer(const ros::Time& stamp, Contact& contact, geometry_msgs::WrenchStamped& force, double seconds = 5.0) {
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    while (ros::ok() && ros::WallTime::now() < end) {
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        auto c = contacts_.find(stamp);
+        auto f = forces_.find(stamp);
+        if (c != contacts_.end() && f != forces_.end()) {
+          contact = c->second;
+          force = f->second;
+          return true;
+        }
+      }
+      ros::WallDuration(0.0005).sleep();
+    }
+    return false;
+  }
+
+  bool answered(const ros::Time& stamp) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return contacts_.count(stamp) > 0;
+  }
+  std::map<ros::Time, Contact> contacts() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return contacts_;
+  }
+  DetectorStatus status() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return status_;
+  }
+  /** Waits until pred(status) holds. */
+  template <class Pred>
+  bool waitStatus(Pred pred, double seconds = 10.0) {
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    while (ros::ok() && ros::WallTime::now() < end) {
+      if (pred(status())) return true;
+      ros::WallDuration(0.01).sleep();
+    }
+    return false;
+  }
+
+  /** Sets the detector's clustering distance through dynamic_reconfigure. */
+  bool setClusteringDistance(double d) {
+    dynamic_reconfigure::Reconfigure srv;
+    dynamic_reconfigure::DoubleParameter param;
+    param.name = "clustering_distance";
+    param.value = d;
+    srv.request.config.doubles.push_back(param);
+    return ros::service::call(ns_ + "/set_parameters", srv);
+  }
+
+  /** Points in the mesh frame: near the surface (both sides, within 2 r) and some far away. */
+  std::vector<Vec3> probes(std::size_t nearCount, std::size_t farCount, std::uint64_t seed) const {
+    std::vector<Vec3> points = nearSurfaceProbes(mesh_, nearCount, 2.0 * radius_, seed);
+    const std::vector<Vec3> far = uniformProbes(mesh_, farCount, 4.0 * radius_, seed + 1);
+    points.insert(points.end(), far.begin(), far.end());
+    return points;
+  }
+
+  /** Checks a contact and force against the brute-force reference for a probe given in the mesh frame. */
+  void expectMatchesReference(const Vec3& pMesh, const Contact& c, const geometry_msgs::WrenchStamped& f) const {
+    const ContactResult ref = bruteForceQuery(mesh_, pMesh, radius_);
+    const double tol = 1e-9 * std::max(1.0, mesh_.diagonal());
+    EXPECT_EQ(c.in_contact, ref.contact) << "probe " << pMesh.transpose() << " ref distance " << ref.distance;
+    EXPECT_NEAR(c.pointer.x, pMesh.x(), 1e-9);
+    EXPECT_NEAR(c.pointer.y, pMesh.y(), 1e-9);
+    EXPECT_NEAR(c.pointer.z, pMesh.z(), 1e-9);
+    const Vec3 forcePose(f.wrench.force.x, f.wrench.force.y, f.wrench.force.z);
+    if (c.in_contact && ref.contact) {
+      EXPECT_NEAR(c.distance, ref.distance, tol);
+      EXPECT_NEAR(c.depth, ref.depth, tol);
+      const Vec3 point(c.point.x, c.point.y, c.point.z);
+      EXPECT_LT((point - ref.point).norm(), 1e-7 * std::max(1.0, mesh_.diagonal())) << "probe " << pMesh.transpose();
+      const Vec3 normal(c.normal.x, c.normal.y, c.normal.z);
+      EXPECT_NEAR(normal.norm(), 1.0, 1e-9);
+      // Force: stiffness * depth along the normal, expressed in the pose frame.
+      const Vec3 expected = meshToPose_.linear() * (stiffness_ * c.depth * normal);
+      EXPECT_LT((forcePose - expected).norm(), 1e-9 * std::max(1.0, expected.norm()));
+      EXPECT_GT(c.triangle, -1);
+    } else {
+      EXPECT_EQ(forcePose.norm(), 0.0);
+    }
+    EXPECT_EQ(f.header.frame_id, poseFrame_);
+  }
+
+  const TriangleMesh& mesh() const { return mesh_; }
+  const Eigen::Isometry3d& meshToPose() const { return meshToPose_; }
+  double radius() const { return radius_; }
+  const std::string& ns() const { return ns_; }
+
+ private:
+  ros::Time nextStamp() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stampCounter_ += 1;
+    return ros::Time(100, 0) + ros::Duration(0, static_cast<std::int32_t>(stampCounter_ % 1000000) * 1000) +
+           ros::Duration(static_cast<double>(stampCounter_ / 1000000));
+  }
+  void onContact(const ContactConstPtr& c) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    contacts_[c->header.stamp] = *c;
+  }
+  void onForce(const geometry_msgs::WrenchStampedConstPtr& f) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    forces_[f->header.stamp] = *f;
+  }
+  void onStatus(const DetectorStatusConstPtr& s) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    status_ = *s;
+  }
+
+  ros::NodeHandle nh_;
+  ros::NodeHandle pnh_;
+  std::string ns_;
+  std::string poseFrame_;
+  TriangleMesh mesh_;
+  Eigen::Isometry3d meshToPose_ = Eigen::Isometry3d::Identity();
+  double radius_ = 0.002;
+  double stiffness_ = 500.0;
+  tf2_ros::StaticTransformBroadcaster staticBroadcaster_;
+  ros::Publisher posePub_;
+  ros::Subscriber contactSub_, forceSub_, statusSub_;
+  std::mutex mutex_;
+  std::uint64_t stampCounter_ = 0;
+  std::map<ros::Time, Contact> contacts_;
+  std::map<ros::Time, geometry_msgs::WrenchStamped> forces_;
+  DetectorStatus status_;
+};
+
+DetectorClient& client() {
+  static DetectorClient c;
+  return c;
+}
+
+TEST(Detector, PosesInContactsOutMatchBruteForce) {
+  DetectorClient& dc = client();
+  ASSERT_TRUE(dc.waitReady()) << "no level or no connection from " << dc.ns();
+  const auto points = dc.probes(240, 60, 11);
+  std::size_t touching = 0, free = 0;
+  for (const Vec3& pMesh : points) {
+    const ros::Time stamp = dc.publish(dc.meshToPose() * pMesh);
+    Contact c;
+    geometry_msgs::WrenchStamped f;
+    ASSERT_TRUE(dc.waitAnswer(stamp, c, f)) << "pose unanswered: " << pMesh.transpose();
+    dc.expectMatchesReference(pMesh, c, f);
+    (c.in_contact ? touching : free) += 1;
+    EXPECT_GT(c.level_spheres, 0u);
+  }
+  // The probe set must exercise both answers, or the test proves little.
+  EXPECT_GT(touching, points.size() / 5);
+  EXPECT_GT(free, points.size() / 5);
+}
+
+TEST(Detector, NanPoseAndUnknownFrameAreDroppedCountedAndTheDetectorKeepsRunning) {
+  DetectorClient& dc = client();
+  ASSERT_TRUE(dc.waitReady());
+  const DetectorStatus before = dc.status();
+  const Vec3 pMesh = dc.probes(1, 0, 5)[0];
+  const ros::Time nanStamp = dc.publish(dc.meshToPose() * pMesh, "", std::numeric_limits<double>::quiet_NaN());
+  const ros::Time infStamp = dc.publish(dc.meshToPose() * pMesh, "", std::numeric_limits<double>::infinity());
+  const ros::Time badFrameStamp = dc.publish(dc.meshToPose() * pMesh, "no_such_frame");
+  const ros::Time goodStamp = dc.publish(dc.meshToPose() * pMesh);
+  Contact c;
+  geometry_msgs::WrenchStamped f;
+  ASSERT_TRUE(dc.waitAnswer(goodStamp, c, f)) << "a good pose after bad ones went unanswered";
+  dc.expectMatchesReference(pMesh, c, f);
+  EXPECT_FALSE(dc.answered(nanStamp));
+  EXPECT_FALSE(dc.answered(infStamp));
+  EXPECT_FALSE(dc.answered(badFrameStamp));
+  EXPECT_TRUE(dc.waitStatus([&](const DetectorStatus& s) {
+    return s.dropped_non_finite >= before.dropped_non_finite + 2 &&
+           s.dropped_unknown_frame >= before.dropped_unknown_frame + 1;
+  })) << "the drops were not counted in " << dc.ns() << "/status";
+}
+
+TEST(Detector, ReconfigureDuringAStreamChangesTheLevelAndAnswersEveryPose) {
+  DetectorClient& dc = client();
+  ASSERT_TRUE(dc.waitReady());
+  double d0 = 0.0, d1 = 0.0;
+  ros::NodeHandle("~").param("reconfigure_from", d0, 0.003);
+  ros::NodeHandle("~").param("reconfigure_to", d1, 0.0);
+  ASSERT_TRUE(dc.setClusteringDistance(d0));
+  ASSERT_TRUE(dc.waitStatus([&](const DetectorStatus& s) { return s.clustering_distance == d0; }, 60.0));
+  const std::uint32_t spheres0 = dc.status().level_spheres;
+
+  const auto points = dc.probes(800, 200, 23);
+  std::vector<std::pair<ros::Time, Vec3>> sent;
+  std::atomic<bool> streaming{true};
+  std::thread stream([&] {
+    ros::WallRate rate(500.0);
+    for (std::size_t k = 0; streaming || k < 500; ++k) {
+      const Vec3& pMesh = points[k % points.size()];
+      sent.emplace_back(dc.publish(dc.meshToPose() * pMesh), pMesh);
+      rate.sleep();
+      if (k > 20000) break;
+    }
+  });
+  ros::WallDuration(0.3).sleep();
+  ASSERT_TRUE(dc.setClusteringDistance(d1));
+  const bool swapped = dc.waitStatus([&](const DetectorStatus& s) { return s.clustering_distance == d1; }, 60.0);
+  ros::WallDuration(0.3).sleep();
+  streaming = false;
+  stream.join();
+  ASSERT_TRUE(swapped) << "the level for d = " << d1 << " never arrived";
+  const std::uint32_t spheres1 = dc.status().level_spheres;
+  EXPECT_NE(spheres0, spheres1) << "d " << d0 << " -> " << d1 << " should change the sphere count";
+
+  // Every pose answered (allow the last ones a moment), each correct, and both levels seen.
+  ros::WallDuration(0.5).sleep();
+  Contact c;
+  geometry_msgs::WrenchStamped f;
+  std::set<std::uint32_t> levelsSeen;
+  std::size_t unanswered = 0;
+  for (const auto& s : sent) {
+    if (!dc.waitAnswer(s.first, c, f, 2.0)) {
+      ++unanswered;
+      continue;
+    }
+    dc.expectMatchesReference(s.second, c, f);
+    levelsSeen.insert(c.level_spheres);
+  }
+  EXPECT_EQ(unanswered, 0u) << "of " << sent.size() << " poses";
+  EXPECT_GT(sent.size(), 300u);
+  EXPECT_TRUE(levelsSeen.count(spheres0)) << "no pose answered by the first level";
+  EXPECT_TRUE(levelsSeen.count(spheres1)) << "no pose answered by the new level";
+}
+
+}  // namespace
+}  // namespace clod_haptics
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_detector");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  const int result = RUN_ALL_TESTS();
+  spinner.stop();
+  ros::shutdown();
+  return result;
+}
