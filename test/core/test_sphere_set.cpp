@@ -1,0 +1,134 @@
+// ClodBuilder / ClodSphereSet: the coverage invariant on every shared mesh, monotone sphere counts,
+// the fitted centres, and parameter checks.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "clod_haptics/core/clustering.h"
+#include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/sphere_set.h"
+#include "test_helpers.h"
+
+namespace {
+
+using namespace clod_haptics;
+using clod_test::coverageProblems;
+
+TEST(ClodSphereSet, CoverageOnEverySharedMeshAtPaperDistances) {
+  const auto meshes = clod_test::sharedMeshes();
+  ASSERT_GE(meshes.size(), 6u) << "expected the six shared meshes in " << CLOD_SHARED_MESH_DIR;
+  for (const auto& path : meshes) {
+    const auto mesh = clod_test::loadNormalized(path);
+    const ClodBuilder builder(mesh);
+    for (double d : {0.0, 0.02, 0.08}) {
+      SCOPED_TRACE(clod_test::baseName(path) + " d=" + std::to_string(d));
+      const ClodSphereSet set = builder.build(d);
+      const auto problems = coverageProblems(*mesh, set);
+      EXPECT_TRUE(problems.empty()) << clod_test::join(problems);
+      EXPECT_EQ(set.distance, d);
+      EXPECT_EQ(set.meshName, mesh->name);
+      EXPECT_EQ(set.stats.spheres, set.size());
+      EXPECT_EQ(set.stats.centres, builder.placed().size());
+      EXPECT_EQ(set.stats.triangles, mesh->size());
+      if (d == 0.0) {
+        EXPECT_EQ(set.size(), builder.placed().size()) << "d = 0 keeps every centre";
+      }
+    }
+  }
+}
+
+TEST(ClodSphereSet, SphereCountNonIncreasingInDistance) {
+  const auto meshes = clod_test::sharedMeshes();
+  ASSERT_FALSE(meshes.empty());
+  for (const auto& path : meshes) {
+    const auto mesh = clod_test::loadNormalized(path);
+    const ClodBuilder builder(mesh);
+    std::size_t previous = std::numeric_limits<std::size_t>::max();
+    for (double d : {0.0, 0.001, 0.005, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08, 0.2, 2.0}) {
+      const std::size_t n = builder.build(d).size();
+      EXPECT_LE(n, previous) << clod_test::baseName(path) << " d=" << d;
+      previous = n;
+    }
+    EXPECT_EQ(previous, 1u) << "d beyond the model size leaves one sphere (a connected mesh): "
+                            << clod_test::baseName(path);
+  }
+}
+
+TEST(ClodSphereSet, ListsAreSortedUniqueAndCoverEveryTriangle) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("mannequin-devil.off"));
+  const ClodBuilder builder(mesh);
+  for (double d : {0.0, 0.03}) {
+    const ClodSphereSet set = builder.build(d);
+    std::vector<int> listed(mesh->size(), 0);
+    for (std::size_t i = 0; i < set.size(); ++i) {
+      ASSERT_LT(set.offsets[i], set.offsets[i + 1]) << "sphere " << i << " lists no triangle";
+      for (const std::uint32_t* t = set.begin(i); t + 1 < set.end(i); ++t) ASSERT_LT(t[0], t[1]);
+      for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t) ++listed[*t];
+    }
+    for (std::size_t t = 0; t < mesh->size(); ++t) EXPECT_GE(listed[t], 1) << "triangle " << t;
+    std::size_t maxList = 0;
+    for (std::size_t i = 0; i < set.size(); ++i) maxList = std::max<std::size_t>(maxList, set.end(i) - set.begin(i));
+    EXPECT_EQ(set.stats.maxTrianglesPerSphere, maxList);
+    EXPECT_NEAR(set.stats.meanTrianglesPerSphere, double(set.triangles.size()) / set.size(), 1e-12);
+  }
+}
+
+TEST(ClodSphereSet, CentreIsMeanOfMembersAndRadiusIsTight) {
+  // Recomputes clusters with the same single-link rule and checks each fitted sphere.
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
+  const ClodBuilder builder(mesh);
+  const double d = 0.04;
+  const ClodSphereSet set = builder.build(d);
+  std::vector<Vec3> centres;
+  for (const auto& s : builder.placed()) centres.push_back(s.centre);
+  std::vector<std::uint32_t> labels;
+  const std::uint32_t k = SingleLinkClustering().cluster(centres, d, labels);
+  ASSERT_EQ(k, set.size());
+  std::vector<Vec3> sum(k, Vec3::Zero());
+  std::vector<int> count(k, 0);
+  for (std::size_t i = 0; i < centres.size(); ++i) {
+    sum[labels[i]] += centres[i];
+    ++count[labels[i]];
+  }
+  for (std::uint32_t c = 0; c < k; ++c) {
+    EXPECT_LE((sum[c] / count[c] - set.centres[c]).norm(), 1e-12) << "cluster " << c;
+    // Tight: some listed vertex lies on the sphere.
+    double far = 0;
+    for (const std::uint32_t* t = set.begin(c); t != set.end(c); ++t)
+      for (int v = 0; v < 3; ++v) far = std::max(far, (mesh->vertex(*t, v) - set.centres[c]).norm());
+    EXPECT_NEAR(set.radii[c], far, 1e-12) << "cluster " << c;
+  }
+}
+
+TEST(ClodSphereSet, BadDistanceThrowsInvalidParameter) {
+  const auto mesh = clod_test::loadNormalized(clod_test::testData("cube.obj"));
+  const ClodBuilder builder(mesh);
+  for (double d : {-0.01, -std::numeric_limits<double>::min(), std::numeric_limits<double>::quiet_NaN(),
+                   std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()})
+    EXPECT_THROW(builder.build(d), InvalidParameter) << "d = " << d;
+  EXPECT_NO_THROW(builder.build(0.0));
+  EXPECT_THROW(requireNonNegative(std::nan(""), "x"), InvalidParameter);
+}
+
+TEST(ClodSphereSet, BuilderRejectsMissingMesh) {
+  EXPECT_THROW(ClodBuilder(nullptr), InvalidParameter);
+}
+
+TEST(ClodSphereSet, ConcurrentBuildsAgree) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("elephant.off"));
+  const ClodBuilder builder(mesh);
+  std::vector<ClodSphereSet> sets(4);
+  clod_test::parallelFor(4, 4, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) sets[i] = builder.build(0.03);
+  });
+  for (std::size_t i = 1; i < sets.size(); ++i) {
+    EXPECT_EQ(sets[i].centres, sets[0].centres);
+    EXPECT_EQ(sets[i].radii, sets[0].radii);
+    EXPECT_EQ(sets[i].triangles, sets[0].triangles);
+  }
+}
+
+}  // namespace
