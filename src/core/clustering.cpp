@@ -127,7 +127,11 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, UnionFind& uf) {
     for (std::size_t i = 0; i < n; ++i) sorted[fill[runOf[i]]++] = static_cast<std::uint32_t>(i);
   }
   const double d2 = d * d;
-  auto close = [&](std::uint32_t a, std::uint32_t b) { return (points[a] - points[b]).squaredNorm() < d2; };
+  // d * d underflows for d below ~1e-154 (and overflows above ~1e154): compare overflow-safe norms there.
+  const bool extreme = !(d2 > 0.0) || !std::isfinite(d2) || d < 1e-140 || d > 1e140;
+  auto close = [&](std::uint32_t a, std::uint32_t b) {
+    return extreme ? (points[a] - points[b]).stableNorm() < d : (points[a] - points[b]).squaredNorm() < d2;
+  };
 
   // Within each cell: link to the first point; collect the loose ones.
   std::vector<char> loose(n, 0);

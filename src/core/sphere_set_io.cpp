@@ -1,5 +1,6 @@
 #include "clod_haptics/core/sphere_set_io.h"
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iomanip>
@@ -79,7 +80,12 @@ ClodSphereSet readSphereSetYaml(const std::string& path) {
   next();
   set.distance = toDouble(afterKey(line, "clustering_distance", lineNo), lineNo);
   next();
-  afterKey(line, "stats", lineNo);
+  const std::string stats = afterKey(line, "stats", lineNo);
+  std::size_t triangleCount = 0;
+  {
+    unsigned long long n = 0;
+    if (std::sscanf(stats.c_str(), "{triangles: %llu", &n) == 1) triangleCount = static_cast<std::size_t>(n);
+  }
   next();
   if (line != "spheres:") throw FormatError(path + ": line " + std::to_string(lineNo) + ": expected 'spheres:'");
   while (std::getline(in, line)) {
@@ -91,20 +97,41 @@ ClodSphereSet readSphereSetYaml(const std::string& path) {
             4 ||
         used == 0)
       throw FormatError(path + ": line " + std::to_string(lineNo) + ": malformed sphere");
+    const std::string where = path + ": line " + std::to_string(lineNo) + ": ";
+    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) throw FormatError(where + "non-finite centre");
+    if (!std::isfinite(r) || r < 0.0) throw FormatError(where + "radius must be finite and >= 0");
     set.centres.emplace_back(x, y, z);
     set.radii.push_back(r);
     std::istringstream list(line.substr(static_cast<std::size_t>(used)));
     std::string item;
+    bool closed = false;
     while (std::getline(list, item, ',')) {
       const std::size_t end = item.find(']');
-      const std::string number = item.substr(0, end);
-      if (number.find_first_not_of(' ') != std::string::npos)
-        set.triangles.push_back(static_cast<std::uint32_t>(toDouble(number, lineNo)));
-      if (end != std::string::npos) break;
+      std::string number = item.substr(0, end);
+      number.erase(0, number.find_first_not_of(' '));
+      number.erase(number.find_last_not_of(' ') + 1);
+      if (!number.empty()) {
+        if (number.find_first_not_of("0123456789") != std::string::npos || number.size() > 10)
+          throw FormatError(where + "triangle index '" + number + "' is not an unsigned integer");
+        const unsigned long long index = std::stoull(number);
+        if (index > 0xffffffffull) throw FormatError(where + "triangle index " + number + " out of range");
+        set.triangles.push_back(static_cast<std::uint32_t>(index));
+      }
+      if (end != std::string::npos) {
+        closed = true;
+        break;
+      }
     }
+    if (!closed) throw FormatError(where + "unterminated triangle list");
     set.offsets.push_back(static_cast<std::uint32_t>(set.triangles.size()));
   }
+  if (triangleCount > 0)
+    for (std::uint32_t t : set.triangles)
+      if (t >= triangleCount)
+        throw FormatError(path + ": triangle index " + std::to_string(t) + " >= the mesh's " +
+                          std::to_string(triangleCount) + " triangles");
   set.stats.spheres = set.size();
+  set.stats.triangles = triangleCount;
   return set;
 }
 
