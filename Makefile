@@ -63,5 +63,11 @@ demo: build
 	@echo "== clod_haptics demo: CLOD sweep of the bundled mesh ($(DEMO_MESH)) =="
 	@$(TOOL) sweep --mesh $(DEMO_MESH) --normalize --distances 0,0.01,0.02,0.03,0.04,0.05,0.06,0.07,0.08
 
+# RViz under a virtual X server (xvfb-run), the pipeline on the bundled torus with a stylus pose that
+# touches it, the screen grabbed with ImageMagick's import: .build/screenshot.png (log beside it).
+.PHONY: screenshot
+screenshot: build deps-screenshot
+	@$(SETUP) && $(ROOT)/scripts/screenshot.sh $(BUILD)/screenshot.png
+
 clean:
 	rm -rf $(BUILD)
