@@ -17,7 +17,7 @@ APT_ROS := ros-base-dev python3-dynamic-reconfigure python3-rostest rosbash libt
 APT_SCREENSHOT := xvfb xauth imagemagick
 APT_BENCH := libcgal-dev libfcl-dev libembree-dev libbenchmark-dev python3-matplotlib python3-numpy
 
-CATKIN := cd $(WS) && catkin_make -j$(JOBS) --cmake-args -DCMAKE_BUILD_TYPE=Release $(CMAKE_EXTRA) --
+CATKIN := cd $(WS) && catkin_make -j$(JOBS) --cmake-args -DCMAKE_BUILD_TYPE=Release $(CMAKE_EXTRA) --make-args
 SETUP := source $(WS)/devel/setup.bash
 TOOL := $(WS)/devel/lib/clod_haptics/clod_tool
 DEMO_MESH := $(ROOT)/data/meshes/torus.obj
@@ -59,8 +59,21 @@ test: deps $(WS)/src/clod_haptics
 	  grep -E '^\[ +(OK|FAILED|SKIPPED) +\]|RESULT:|FAILURE|ERROR' $(BUILD)/run_tests.log | grep -v '^\[ *OK' | tail -60 || true
 	@$(SETUP) && python3 $(ROOT)/scripts/count_test_results.py $(WS)/build/test_results
 
+# The whole pipeline, headless: bag_replay plays the bundled stylus bag (data/bags/torus_stylus.bag,
+# 7.5 s at 1 kHz) once over the bundled torus, sphere_builder + detector answer every pose, and
+# scripts/contact_summary.py prints poses, contacts and the achieved rate, then stops the launch
+# (exit 1 if poses went unanswered or the replay did not end). Its own master on a free port;
+# the launch log goes to .build/demo.log.
 demo: build
-	@echo "== clod_haptics demo: CLOD sweep of the bundled mesh ($(DEMO_MESH)) =="
+	@echo "== clod_haptics demo: bundled stylus bag -> bag_replay -> detector over $(DEMO_MESH) (log: $(BUILD)/demo.log) =="
+	@port=$${DEMO_PORT:-$$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')} && \
+	  $(SETUP) && export ROS_MASTER_URI=http://localhost:$$port CLOD_BAG_WAIT_FOR_SUBSCRIBERS=2 && \
+	  timeout -k 10 180 python3 $(ROOT)/scripts/contact_summary.py --timeout 150 --log $(BUILD)/demo.log -- \
+	  roslaunch -p $$port clod_haptics clod_haptics.launch device:=bag rviz:=false
+
+# The core alone, no ROS master: a CLOD sweep of the bundled mesh.
+demo-core: build
+	@echo "== clod_haptics core demo: CLOD sweep of the bundled mesh ($(DEMO_MESH)) =="
 	@$(TOOL) sweep --mesh $(DEMO_MESH) --normalize --distances 0,0.01,0.02,0.03,0.04,0.05,0.06,0.07,0.08
 
 # RViz under a virtual X server (xvfb-run), the pipeline on the bundled torus with a stylus pose that

@@ -30,6 +30,7 @@ def parse(argv):
     parser.add_argument("--done-topic", default="/bag_replay/done")
     parser.add_argument("--timeout", type=float, default=90.0, help="seconds for the whole run")
     parser.add_argument("--settle", type=float, default=2.0, help="seconds to wait for the last answers")
+    parser.add_argument("--log", help="write the command's output here instead of the terminal")
     args = parser.parse_args(argv)
     return args, cmd
 
@@ -90,7 +91,8 @@ def main(argv):
     args, cmd = parse(argv)
     proc = None
     if cmd:
-        proc = subprocess.Popen(cmd, start_new_session=True)
+        out = open(args.log, "w") if args.log else None
+        proc = subprocess.Popen(cmd, start_new_session=True, stdout=out, stderr=subprocess.STDOUT if out else None)
     deadline = time.monotonic() + args.timeout
     status = 1
     try:
