@@ -22,7 +22,7 @@ SETUP := source $(WS)/devel/setup.bash
 TOOL := $(WS)/devel/lib/clod_haptics/clod_tool
 DEMO_MESH := $(ROOT)/data/meshes/torus.obj
 
-.PHONY: all deps deps-screenshot deps-bench build test demo demo-core clean
+.PHONY: all deps deps-screenshot deps-bench build test demo demo-core clean bench
 
 all: build
 
@@ -44,6 +44,25 @@ deps-screenshot:
 
 deps-bench:
 	$(call apt_install,$(APT_BENCH))
+
+# Benchmark (bench/): its own workspace configured with CLOD_BUILD_BENCH=ON, so `make test` keeps
+# the default OFF. Full run (< 30 min) writes bench/results/ (report.md, CSV, PNG);
+# BENCH_QUICK=1 is a few minutes and writes bench/results/tmp/quick/. BENCH_ARGS passes options
+# to clod_bench, e.g. BENCH_ARGS="--meshes mannequin-devil.off --sections sweep,peers".
+BENCH_WS := $(BUILD)/bench_ws
+BENCH_SHARED_DIR ?= $(if $(CLOD_SHARED_DIR),$(CLOD_SHARED_DIR),$(abspath $(ROOT)/../shared))
+BENCH_QUICK_ON := $(filter-out 0 no false,$(BENCH_QUICK))
+BENCH_OUT := $(if $(BENCH_QUICK_ON),$(ROOT)/bench/results/tmp/quick,$(ROOT)/bench/results)
+bench: deps deps-bench
+	@mkdir -p $(BENCH_WS)/src $(ROS_HOME) $(BENCH_OUT) && ln -sfn $(ROOT) $(BENCH_WS)/src/clod_haptics
+	@echo "== building clod_bench in $(BENCH_WS) (log: $(BUILD)/bench_build.log) =="
+	@cd $(BENCH_WS) && catkin_make clod_bench -j$(JOBS) --cmake-args -DCMAKE_BUILD_TYPE=Release \
+	  -DCLOD_BUILD_BENCH=ON -DCATKIN_ENABLE_TESTING=OFF > $(BUILD)/bench_build.log 2>&1 || \
+	  { tail -40 $(BUILD)/bench_build.log; exit 1; }
+	@$(BENCH_WS)/devel/lib/clod_haptics/clod_bench --shared $(BENCH_SHARED_DIR) --out $(BENCH_OUT) \
+	  $(if $(BENCH_QUICK_ON),--quick) $(BENCH_ARGS) 2>&1 | tee $(BUILD)/bench_run.log; exit $${PIPESTATUS[0]}
+	@python3 $(ROOT)/bench/report.py $(BENCH_OUT)
+	@echo "== report: $(BENCH_OUT)/report.md =="
 
 $(WS)/src/clod_haptics:
 	@mkdir -p $(WS)/src $(ROS_HOME)

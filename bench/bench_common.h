@@ -1,0 +1,108 @@
+#pragma once
+// Shared pieces of the clod_haptics benchmark: the peer interface, the exact pruned reference,
+// the per-query timer and small helpers. Not part of the library; never a test.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "clod_haptics/core/contact.h"
+#include "clod_haptics/core/mesh.h"
+
+namespace clod_bench {
+
+using clod_haptics::ContactResult;
+using clod_haptics::TriangleMesh;
+using clod_haptics::Vec3;
+
+/** \brief What every contender answers for one probe: is a triangle within r, and the closest point. */
+struct Answer {
+  bool contact = false;
+  Vec3 point = Vec3::Zero();
+  double distance = 0.0;
+  std::int32_t triangle = -1;
+};
+
+/**
+ * \brief One contender of the peer comparison, answering the same radius-bounded question as
+ * ClodDetector::query in Exact mode. query() must not allocate.
+ */
+class Peer {
+ public:
+  virtual ~Peer() = default;
+  /** \brief Short name used in the CSV ("embree", "cgal", "fcl", "brute", "clod-hierarchy", ...). */
+  virtual std::string name() const = 0;
+  /** \brief Answers for pointer centre p and radius r. */
+  virtual void query(const Vec3& p, double r, Answer& out) const = 0;
+  /** \brief Wall time of the structure's construction, milliseconds. */
+  double buildMs = 0.0;
+};
+
+// Peers living in their own translation units (CGAL is header-heavy: compiled once).
+std::unique_ptr<Peer> makeCgalPeer(const TriangleMesh& mesh);
+std::unique_ptr<Peer> makeFclPeer(const TriangleMesh& mesh);
+std::unique_ptr<Peer> makeEmbreePeer(const TriangleMesh& mesh);
+
+/**
+ * \brief The exact reference, pruned: a uniform grid holds every triangle in the cells its box
+ * grown by r overlaps, in ascending index order. A probe tests only its cell's triangles, with the
+ * same closest-point routine and tie rule (lowest index) as bruteForceQuery, so for a radius at most
+ * r it returns bit-identical answers (checked against bruteForceQuery on a sample in every run).
+ */
+class PrunedReference {
+ public:
+  PrunedReference(const TriangleMesh& mesh, double r);
+  /** \brief Same answer as clod_haptics::bruteForceQuery(mesh, p, r) (trianglesTested aside). */
+  ContactResult query(const Vec3& p) const;
+  /** \brief Answers for all probes on `threads` threads. */
+  std::vector<ContactResult> queryAll(const std::vector<Vec3>& probes, unsigned threads) const;
+
+ private:
+  const TriangleMesh& mesh_;
+  double r_;
+  Vec3 lo_;
+  double inv_;
+  int n_[3];
+  std::vector<std::uint32_t> start_;
+  std::vector<std::uint32_t> items_;
+  std::vector<double> boxes_;  // 6 per triangle: lo, hi
+};
+
+/** \brief Converts cycles of the time-stamp counter to nanoseconds (calibrated once at start). */
+struct Clock {
+  static void calibrate();
+  static double nsPerTick;
+  static double overheadTicks;  // median cost of an empty timed region
+};
+
+/** \brief Per-query times (ns) and summary statistics. */
+struct Timing {
+  std::vector<float> ns;
+  double median = 0, mean = 0, p10 = 0, p90 = 0, p99 = 0, totalSeconds = 0;
+  double trimmedMean = 0;  // mean of the times up to the 99th percentile: drops preemption spikes
+  void summarise();
+};
+
+/** \brief Subdivides every triangle into four at its edge midpoints (shared midpoints: stays closed). */
+TriangleMesh subdivide(const TriangleMesh& mesh);
+
+/** \brief Number of edges not shared by exactly two triangles (0 for a closed manifold mesh). */
+std::size_t openEdges(const TriangleMesh& mesh);
+
+/** \brief Enclosed volume by the divergence theorem (meaningful for a closed, consistently wound mesh). */
+double meshVolume(const TriangleMesh& mesh);
+
+/** \brief Stylus tip positions (metres or millimetres as recorded) resampled at 1 kHz; empty on failure. */
+std::vector<Vec3> readTrajectory(const std::string& bagPath, const std::string& topic, double rateHz,
+                                 std::string& error, double& seconds, std::size_t& messages);
+
+/** \brief Places a trajectory over the mesh: uniform scale into its bounding box, centred. */
+std::vector<Vec3> placeOver(const std::vector<Vec3>& trajectory, const TriangleMesh& mesh);
+
+/** \brief Peak resident set (VmHWM) and current resident set (VmRSS) in bytes; resetPeak writes /proc/self/clear_refs. */
+std::size_t peakRssBytes();
+std::size_t currentRssBytes();
+bool resetPeakRss();
+
+}  // namespace clod_bench

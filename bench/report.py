@@ -1,0 +1,458 @@
+#!/usr/bin/env python3
+"""Turns the CSV files of clod_bench into bench/results/report.md and PNG plots.
+
+Usage: python3 bench/report.py RESULTS_DIR
+Reads run.csv, build.csv, sweep.csv, peers.csv, tightness.csv, growth.csv, reference_check.csv
+(any missing file just drops its section). Ratios are always between figures of the same run.
+"""
+import csv
+import math
+import os
+import sys
+from collections import defaultdict
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+HEADLINE_MESH = "mannequin-devil.off"
+PEERS = ["embree", "cgal", "fcl", "brute"]
+MODES = ["spheres", "paper", "exact"]
+
+
+def read(out, name):
+    path = os.path.join(out, name)
+    if not os.path.exists(path):
+        return []
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def num(v):
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def f(v, digits=3):
+    """Compact number for tables."""
+    v = num(v)
+    if math.isnan(v):
+        return "-"
+    if v == 0:
+        return "0"
+    if abs(v) >= 1e5 or abs(v) < 1e-3:
+        return f"{v:.{digits - 1}e}"
+    if abs(v) >= 100:
+        return f"{v:.0f}"
+    return f"{v:.{digits}g}"
+
+
+def table(header, rows):
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def fit_exponent(xs, ys):
+    """Least-squares slope of log y against log x."""
+    pts = [(math.log(x), math.log(y)) for x, y in zip(xs, ys) if x > 0 and y > 0]
+    if len(pts) < 2:
+        return float("nan")
+    a = np.array(pts)
+    return float(np.polyfit(a[:, 0], a[:, 1], 1)[0])
+
+
+def main():
+    out = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "results")
+    meta = {r["key"]: r["value"] for r in read(out, "run.csv")}
+    build = read(out, "build.csv")
+    sweep = read(out, "sweep.csv")
+    peers = read(out, "peers.csv")
+    tight = read(out, "tightness.csv")
+    growth = read(out, "growth.csv")
+    checks = read(out, "reference_check.csv")
+    meshes = []
+    for r in build + peers + sweep:
+        if r["mesh"] not in meshes:
+            meshes.append(r["mesh"])
+    report_d = meta.get("report_d", "0.02")
+    md = []
+    md.append("# clod_haptics benchmark: run time against error, beside the peers\n")
+    md.append(
+        f"Run {meta.get('date', '?')} ({meta.get('mode', '?')} mode) on `{meta.get('host', '?')}`, "
+        f"{meta.get('cpu', '?')}, {meta.get('hardware_threads', '?')} hardware threads, shared with other jobs: "
+        "absolute times drift, so compare the ratios, which are measured in the same run, contender after "
+        f"contender on the same probes ({meta.get('rounds', '1')} alternating rounds, best median kept).\n"
+    )
+    md.append(
+        f"Pointer radius r = {meta.get('radius', '?')} on models normalised to the unit cube. Probe sets per mesh: "
+        f"`near` ({meta.get('probes_per_set', '?')} surface samples pushed along the normal by up to "
+        f"+-{meta.get('near_offset', '?')}), `uniform` ({meta.get('probes_per_set', '?')} points in the bounding box "
+        f"grown by {meta.get('uniform_margin', '?')}), `trajectory` (the recorded Geomagic Touch stylus, "
+        f"{meta.get('trajectory', '?')}, scaled uniformly into the mesh's bounding box and centred), and "
+        "`near-morton` (the near set sorted along a Morton curve: a coherent stream). Every query is timed alone "
+        "with the fenced time-stamp counter, the timer's own cost subtracted; the answers are kept and compared "
+        "with the exact reference.\n"
+    )
+    md.append("Reproduce: `make bench` (full, writes this directory) or `BENCH_QUICK=1 make bench` "
+              "(minutes, writes bench/results/tmp/quick).\n")
+
+    # ------------------------------------------------------------------ reference check
+    if checks:
+        bad = sum(int(r["differences_from_bruteForceQuery"]) for r in checks)
+        n = sum(int(r["probes"]) for r in checks)
+        md.append(
+            f"**Reference.** The error columns use a pruned exact reference (a grid over the triangles' boxes "
+            f"grown by r, same closest-point routine and tie rule as `bruteForceQuery`). In this run it differs "
+            f"from `bruteForceQuery` on {bad} of {n} probes checked (bit for bit: contact, distance, point, "
+            "triangle).\n"
+        )
+
+    # ------------------------------------------------------------------ headline
+    def peer_rows(mesh, s):
+        return {r["peer"]: r for r in peers if r["mesh"] == mesh and r["set"] == s}
+
+    if peers:
+        md.append("## Headline: exact mode, d = %s, r = %s\n" % (report_d, meta.get("radius", "?")))
+        rows = []
+        for mesh in meshes:
+            for s in ["near", "uniform", "trajectory", "near-morton"]:
+                pr = peer_rows(mesh, s)
+                if "clod-hierarchy" not in pr:
+                    continue
+                ours = num(pr["clod-hierarchy"]["median_ns"])
+                fastest = min(
+                    (num(pr[p]["median_ns"]), p) for p in ["embree", "cgal", "fcl"] if p in pr)
+                row = [mesh, pr["clod-hierarchy"]["triangles"], pr["clod-hierarchy"]["spheres"], s, f(ours),
+                       f(num(pr["clod-flat"]["median_ns"])) if "clod-flat" in pr else "-"]
+                for p in PEERS:
+                    row.append(f"{f(pr[p]['median_ns'])} ({f(num(pr[p]['median_ns']) / ours)}x)" if p in pr else "-")
+                row.append(f"{fastest[1]} {f(fastest[0] / ours)}x")
+                row.append(" ".join(f"{p}:{pr[p]['disagreements']}" for p in ["clod-hierarchy", "clod-flat"] + PEERS if p in pr))
+                rows.append(row)
+        md.append(
+            "Median ns per query. In brackets: the peer's median divided by ours (above 1: we are faster). "
+            "`disagree` counts answers that differ from the reference (contact flag, or distance / point by more "
+            "than 1e-9) on the probes each contender ran (the flat list and brute force run a time-bounded prefix).\n"
+        )
+        md.append(table(["mesh", "tris", "spheres", "probes", "clod hierarchy", "clod flat"] + PEERS +
+                        ["vs fastest peer", "disagree"], rows))
+        pr = peer_rows(HEADLINE_MESH, "near")
+        if "clod-hierarchy" in pr:
+            ours = num(pr["clod-hierarchy"]["median_ns"])
+            fast = min((num(pr[p]["median_ns"]), p) for p in ["embree", "cgal", "fcl"] if p in pr)
+            traj = peer_rows(HEADLINE_MESH, "trajectory").get("clod-hierarchy")
+            md.append(
+                f"Targets on {HEADLINE_MESH}: median under 500 ns on near-surface probes: **{f(ours)} ns, "
+                f"{'met' if ours < 500 else 'not met'}**; at least 3x faster than the fastest peer ({fast[1]}, "
+                f"{f(fast[0])} ns): **{f(fast[0] / ours)}x, {'met' if fast[0] / ours >= 3 else 'not met'}**"
+                + (f"; trajectory under 200 ns: **{f(traj['median_ns'])} ns, "
+                   f"{'met' if num(traj['median_ns']) < 200 else 'not met'}**" if traj else "") + ".\n")
+
+    # ------------------------------------------------------------------ Table 2 per mesh
+    if build:
+        md.append("## Table 2 per mesh: CLOD levels, detection time and update rate\n")
+        md.append(
+            "As the paper's Table 2: centres before clustering, spheres after, step reduction (against the previous "
+            "d) and total reduction (against the centres). Times are means over the `near` probes, in ns, with the "
+            "slowest 1% dropped (preemption spikes on a shared machine; raw means in sweep.csv): fast = "
+            "`spheres` mode (the fast level alone), precise = `exact` minus `spheres`, total = `exact`; update rate = "
+            "1 / total. Build = placement (once per mesh) + clustering of this level, ms.\n")
+        sw = defaultdict(dict)
+        for r in sweep:
+            if r["set"] == "near":
+                sw[(r["mesh"], r["d"], r["level"])][r["mode"]] = r
+        for mesh in meshes:
+            rows = []
+            for b in [r for r in build if r["mesh"] == mesh]:
+                row = [b["d"], b["centres"], b["spheres"], f"{100 * num(b['step_reduction']):.1f}%",
+                       f"{100 * num(b['total_reduction']):.1f}%", f(num(b["placement_ms"]) + num(b["build_ms"]))]
+                for level in ["hierarchy", "flat"]:
+                    m = sw.get((mesh, b["d"], level), {})
+                    if "exact" in m and "spheres" in m:
+                        fast, tot = num(m["spheres"]["trimmed_mean_ns"]), num(m["exact"]["trimmed_mean_ns"])
+                        row += [f(fast), f(tot - fast), f(tot), f(1e9 / tot)]
+                    else:
+                        row += ["-"] * 4
+                rows.append(row)
+            if rows:
+                tris = next(r["triangles"] for r in build if r["mesh"] == mesh)
+                md.append(f"### {mesh} ({tris} triangles)\n")
+                md.append(table(["d", "centres", "spheres", "step red.", "total red.", "build ms",
+                                 "hier. fast", "hier. precise", "hier. total", "hier. Hz",
+                                 "flat fast", "flat precise", "flat total", "flat Hz"], rows))
+
+    # ------------------------------------------------------------------ errors
+    if sweep:
+        md.append("## Error against the exact reference, per mode\n")
+        md.append(
+            "Over the `near`, `uniform` and `trajectory` probes together, hierarchy fast level (the flat list "
+            "answers the same questions; its columns are in sweep.csv). missed = reference contact not reported, "
+            "false = contact reported where the reference has none, both as counts over the probes; distance error "
+            "|ours - reference| and normal error (degrees) over the probes both call a contact. `spheres` reports the "
+            "contact with the clustered spheres, so its distance is to a sphere, not to the surface.\n")
+        exact_bad = []
+        for r in sweep:
+            if r["mode"] == "exact" and (int(r["missed"]) or int(r["false_contacts"]) or num(r["max_dist_err"]) > 0):
+                exact_bad.append(r)
+        md.append(
+            "**Exact mode errors on every mesh, level, d and probe set: "
+            + ("all zero.**\n" if not exact_bad else f"{len(exact_bad)} rows not zero (see sweep.csv).**\n"))
+        for mesh in meshes:
+            agg = defaultdict(lambda: defaultdict(float))
+            for r in sweep:
+                if r["mesh"] != mesh or r["level"] != "hierarchy" or r["set"] == "near-morton":
+                    continue
+                a = agg[(r["d"], r["mode"])]
+                both = min(int(r["ref_contacts"]), int(r["contacts"])) - 0  # weight for means (approx.)
+                a["n"] += int(r["probes"])
+                a["ref"] += int(r["ref_contacts"])
+                a["missed"] += int(r["missed"])
+                a["false"] += int(r["false_contacts"])
+                a["w"] += both
+                a["dist"] += num(r["mean_dist_err"]) * both
+                a["normal"] += num(r["mean_normal_err_deg"]) * both
+                a["maxdist"] = max(a["maxdist"], num(r["max_dist_err"]))
+                a["maxnormal"] = max(a["maxnormal"], num(r["max_normal_err_deg"]))
+            ds = sorted({k[0] for k in agg}, key=num)
+            rows = []
+            for d in ds:
+                row = [d]
+                for mode in MODES:
+                    a = agg.get((d, mode))
+                    if not a:
+                        row += ["-"] * 3
+                        continue
+                    w = max(a["w"], 1)
+                    row += [f"{int(a['missed'])} / {int(a['false'])}", f"{f(a['dist'] / w)} / {f(a['maxdist'])}",
+                            f"{f(a['normal'] / w)} / {f(a['maxnormal'])}"]
+                rows.append(row)
+            if rows:
+                n = agg[(ds[0], "exact")]["n"] if (ds[0], "exact") in agg else 0
+                ref = agg[(ds[0], "exact")]["ref"] if (ds[0], "exact") in agg else 0
+                md.append(f"### {mesh} ({int(n)} probes, {int(ref)} reference contacts)\n")
+                hdr = ["d"]
+                for mode in MODES:
+                    hdr += [f"{mode} missed / false", f"{mode} dist err mean / max", f"{mode} normal err deg mean / max"]
+                md.append(table(hdr, rows))
+        plot_pareto(out, sweep, meshes)
+        md.append("![run time against error](pareto.png)\n")
+        md.append(
+            "pareto.png: mean query time (slowest 1% dropped) (near + uniform + trajectory probes) against the fraction of wrong contact "
+            "answers (missed + false over the probes), one point per d, per mode (colour) and fast level (marker). "
+            "Exact sits at zero error for every d.\n")
+
+    # ------------------------------------------------------------------ peers plot
+    if peers:
+        plot_peers(out, peers, meshes)
+        md.append("## Ratio to each peer\n![ratio to peers](peers.png)\n")
+        md.append("peers.png: the peer's median time divided by ours (exact, hierarchy, d = %s) per probe set; above "
+                  "the line at 1 we are faster.\n" % report_d)
+        rows = []
+        for mesh in meshes:
+            pr = peer_rows(mesh, "near")
+            if pr:
+                rows.append([mesh] + [f"{f(pr[p]['build_ms'])}" for p in ["embree", "cgal", "fcl"] if p in pr])
+        md.append("Peer structure build times, ms:\n")
+        md.append(table(["mesh", "embree", "cgal", "fcl"], rows))
+
+    # ------------------------------------------------------------------ tightness
+    if tight:
+        md.append("## Sphere tightness against an octree of the same sphere count (paper Figs. 17 to 19)\n")
+        md.append(
+            "Octree: the cube around the mesh split into eight, keeping the cells an exact triangle-box test finds "
+            "occupied, largest cells first, until at least as many cells as our spheres; each cell gives its "
+            "circumscribed sphere (Bradshaw's octree spheres). Outside volume: Monte Carlo volume of the union of "
+            "the spheres outside the mesh, relative to the mesh volume (inside test: majority of three ray "
+            "parities; `MC vol` is the Monte Carlo mesh volume against the exact one, a check of that test). "
+            "Covered: fraction of surface samples inside some sphere (ours must be 1).\n")
+        by = defaultdict(dict)
+        for r in tight:
+            by[(r["mesh"], r["d"])][r["kind"]] = r
+        rows = []
+        for (mesh, d), k in by.items():
+            c, o = k.get("clod"), k.get("octree")
+            if not c or not o:
+                continue
+            rows.append([mesh, d, c["spheres"], f(c["outside_volume_rel"]), f(c["union_volume_rel"]),
+                         f"{num(c['surface_covered']):.6f}", o["spheres"], o["octree_depth"], f(o["outside_volume_rel"]),
+                         f(o["union_volume_rel"]), f"{num(o['surface_covered']):.6f}",
+                         f"{f(c['mc_mesh_volume'])} / {f(c['mesh_volume'])}", c["open_edges"]])
+        md.append(table(["mesh", "d", "ours spheres", "ours outside", "ours union", "ours covered", "octree spheres",
+                         "depth", "octree outside", "octree union", "octree covered", "MC vol / exact",
+                         "open edges"], rows))
+        plot_tightness(out, tight)
+        md.append("![tightness](tightness.png)\n")
+
+    # ------------------------------------------------------------------ growth
+    if growth:
+        md.append("## Growth with the triangle count\n")
+        md.append(
+            "The meshes subdivided (midpoint split of every triangle into four, repeatedly), each point measured "
+            "in a forked process. Build = `ClodBuilder` construction (ray-cast placement, all hardware threads) + "
+            "`build(d)`; detector = `ClodDetector` construction (hierarchy). Query: median over near-surface probes, "
+            "exact mode. Peak = VmHWM after the build minus VmRSS before (peak reset through /proc/self/clear_refs), "
+            "per triangle, for the whole CLOD set (builder, set and detector); retained = resident after the "
+            "builder is freed; set = the sphere set's arrays alone. `check` = probes compared with the reference "
+            "(mismatches).\n")
+        rows = []
+        for g in growth:
+            rows.append([g["mesh"], g["subdivisions"], g["triangles"], g["spheres"], f(g["placement_ms"]),
+                         f(g["build_ms"]), f(g["detector_ms"]), f(g["build_tri_per_s"]), f(g["median_ns"]),
+                         f(g["peak_bytes_per_tri"]), f(g["retained_bytes_per_tri"]), f(g["set_bytes_per_tri"]),
+                         f"{g['checked']} ({g['mismatches']})"])
+        md.append(table(["mesh", "subdiv.", "tris", "spheres", "placement ms", "build(d) ms", "detector ms",
+                         "build tri/s", "query ns", "peak B/tri", "retained B/tri", "set B/tri", "check"], rows))
+        rows = []
+        allx, ally, allb = [], [], []
+        for mesh in dict.fromkeys(g["mesh"] for g in growth):
+            gs = [g for g in growth if g["mesh"] == mesh]
+            x = [num(g["triangles"]) for g in gs]
+            q = [num(g["median_ns"]) for g in gs]
+            b = [num(g["placement_ms"]) + num(g["build_ms"]) for g in gs]
+            allx += x
+            ally += q
+            allb += b
+            rows.append([mesh, f"{fit_exponent(x, b):.2f}", f"{fit_exponent(x, q):.2f}"])
+        rows.append(["all points", f"{fit_exponent(allx, allb):.2f}", f"{fit_exponent(allx, ally):.2f}"])
+        md.append("Fitted exponents (least squares of log time against log triangles): build time ~ n^a, query "
+                  "time ~ n^b.\n")
+        md.append(table(["mesh", "build a", "query b"], rows))
+        big = max(growth, key=lambda g: num(g["triangles"]))
+        md.append(
+            f"Largest mesh: {big['mesh']} x{big['subdivisions']}, {big['triangles']} triangles: build throughput "
+            f"{f(big['build_tri_per_s'])} tri/s (target 1e6), peak {f(big['peak_bytes_per_tri'])} B/tri "
+            "(target 300).\n")
+        plot_growth(out, growth)
+        md.append("![growth](growth.png)\n")
+
+    md.append("## Files\n")
+    md.append("`build.csv` (levels), `sweep.csv` (every mesh x d x fast level x mode x probe set: times and errors), "
+              "`peers.csv`, `tightness.csv`, `growth.csv`, `reference_check.csv`, `run.csv` (settings and machine).\n")
+    with open(os.path.join(out, "report.md"), "w") as fo:
+        fo.write("\n".join(md))
+    print("report written:", os.path.join(out, "report.md"))
+
+
+# ---------------------------------------------------------------------------------------------- plots
+def grid(n):
+    cols = min(3, max(1, n))
+    rows = (n + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 4.2 * rows), squeeze=False)
+    return fig, axes.flatten()
+
+
+def plot_pareto(out, sweep, meshes):
+    colours = {"spheres": "tab:orange", "paper": "tab:blue", "exact": "tab:green"}
+    used = [m for m in meshes if any(r["mesh"] == m for r in sweep)]
+    fig, axes = grid(len(used))
+    for ax, mesh in zip(axes, used):
+        for level, marker, ls in [("hierarchy", "o", "-"), ("flat", "x", "--")]:
+            for mode in MODES:
+                pts = defaultdict(lambda: [0.0, 0.0, 0.0])  # d -> time sum, wrong, n
+                for r in sweep:
+                    if r["mesh"] == mesh and r["level"] == level and r["mode"] == mode and r["set"] != "near-morton":
+                        p = pts[num(r["d"])]
+                        n = int(r["probes"])
+                        p[0] += num(r["trimmed_mean_ns"]) * n
+                        p[1] += int(r["missed"]) + int(r["false_contacts"])
+                        p[2] += n
+                ds = sorted(pts)
+                if not ds:
+                    continue
+                x = [100.0 * pts[d][1] / pts[d][2] for d in ds]
+                y = [pts[d][0] / pts[d][2] for d in ds]
+                ax.plot(x, y, ls, marker=marker, color=colours[mode], label=f"{mode} {level}", ms=5)
+                if level == "hierarchy":
+                    for d, xi, yi in zip(ds, x, y):
+                        ax.annotate(f"{d:g}", (xi, yi), fontsize=6, alpha=0.7)
+        ax.set_yscale("log")
+        ax.set_xlabel("wrong contact answers, % of probes")
+        ax.set_ylabel("mean ns per query")
+        ax.set_title(mesh, fontsize=9)
+        ax.grid(alpha=0.3)
+    for ax in axes[len(used):]:
+        ax.axis("off")
+    if used:
+        axes[0].legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "pareto.png"), dpi=90)
+    plt.close(fig)
+
+
+def plot_peers(out, peers, meshes):
+    sets = ["near", "uniform", "trajectory", "near-morton"]
+    used = [m for m in meshes if any(r["mesh"] == m for r in peers)]
+    fig, axes = grid(len(used))
+    width = 0.2
+    for ax, mesh in zip(axes, used):
+        pr = defaultdict(dict)
+        for r in peers:
+            if r["mesh"] == mesh:
+                pr[r["set"]][r["peer"]] = num(r["median_ns"])
+        for i, p in enumerate(PEERS):
+            ys = [pr[s].get(p, float("nan")) / pr[s].get("clod-hierarchy", float("nan")) for s in sets]
+            ax.bar(np.arange(len(sets)) + (i - 1.5) * width, ys, width, label=p)
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.set_yscale("log")
+        ax.set_xticks(np.arange(len(sets)))
+        ax.set_xticklabels(sets, fontsize=7)
+        ax.set_ylabel("peer median / ours")
+        ax.set_title(mesh, fontsize=9)
+        ax.grid(alpha=0.3, axis="y")
+    for ax in axes[len(used):]:
+        ax.axis("off")
+    if used:
+        axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "peers.png"), dpi=90)
+    plt.close(fig)
+
+
+def plot_tightness(out, tight):
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for kind, marker in [("clod", "o"), ("octree", "s")]:
+        for mesh in dict.fromkeys(r["mesh"] for r in tight):
+            rs = [r for r in tight if r["mesh"] == mesh and r["kind"] == kind and not math.isnan(num(r["outside_volume_rel"]))]
+            if not rs:
+                continue
+            rs.sort(key=lambda r: num(r["spheres"]))
+            ax.plot([num(r["spheres"]) for r in rs], [num(r["outside_volume_rel"]) for r in rs],
+                    "-" if kind == "clod" else ":", marker=marker, label=f"{mesh} {kind}", ms=4)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("spheres")
+    ax.set_ylabel("sphere volume outside the mesh / mesh volume")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "tightness.png"), dpi=90)
+    plt.close(fig)
+
+
+def plot_growth(out, growth):
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for mesh in dict.fromkeys(g["mesh"] for g in growth):
+        gs = [g for g in growth if g["mesh"] == mesh]
+        x = [num(g["triangles"]) for g in gs]
+        axes[0].plot(x, [num(g["median_ns"]) for g in gs], "-o", label=mesh, ms=4)
+        axes[1].plot(x, [num(g["placement_ms"]) + num(g["build_ms"]) for g in gs], "-o", label=mesh, ms=4)
+    axes[0].set_ylabel("median ns per query (exact)")
+    axes[1].set_ylabel("build ms (placement + build(d))")
+    for ax in axes:
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("triangles")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "growth.png"), dpi=90)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    main()
