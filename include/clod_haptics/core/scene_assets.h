@@ -1,0 +1,79 @@
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <utility>
+
+#include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/mesh.h"
+#include "clod_haptics/core/mesh_loader.h"
+#include "clod_haptics/core/sphere_cache.h"
+#include "clod_haptics/core/sphere_set.h"
+
+namespace clod_haptics {
+
+/**
+ * \brief Loads the meshes and CLOD levels of a scene, each at most once: a mesh used by several
+ * objects (same file, same load options) is loaded once, a level (same mesh content, same clustering
+ * distance) is read from the disk cache or built once and shared. Builders (the ray casts) are made
+ * only on a cache miss. Thread-safe (one mutex; loads and builds run under it).
+ */
+class SceneAssets {
+ public:
+  /** \brief What level() did. */
+  struct LevelInfo {
+    CacheOutcome cache;        ///< disk cache outcome (source Hit when shared in memory too)
+    bool shared = false;       ///< the level was already in memory (another object asked first)
+    double detectorMs = 0.0;   ///< time to construct the ClodDetector
+  };
+
+  /**
+   * \brief Levels go through cache; detectors use fastLevel and gridRadius (the largest pointer
+   * radius the grid serves, see ClodDetector). keepBuilders keeps each mesh's ClodBuilder after a
+   * build so another level of that mesh only clusters; false frees the placement's memory.
+   */
+  SceneAssets(std::shared_ptr<SphereSetCache> cache, FastLevel fastLevel = FastLevel::Grid, double gridRadius = 0.0,
+              bool keepBuilders = true);
+
+  /**
+   * \brief The mesh at path loaded with options, shared with earlier calls asking for the same.
+   * \throws MeshLoadError, InvalidParameter as loadMesh.
+   */
+  std::shared_ptr<const TriangleMesh> mesh(const std::string& path, const MeshLoadOptions& options = {});
+
+  /**
+   * \brief The level of mesh for clustering distance d: from memory, else the disk cache, else built
+   * (and stored). Lazy: nothing is built before it is asked for.
+   * \throws InvalidParameter for a bad d; ClodError from the build.
+   */
+  std::shared_ptr<const ClodDetector> level(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
+                                            LevelInfo* info = nullptr);
+
+  /** \brief Content hash of a mesh (computed once per mesh). */
+  std::uint64_t hash(const std::shared_ptr<const TriangleMesh>& mesh);
+
+  /** \brief Number of ClodBuilder constructions (ray-cast placements) so far. */
+  std::uint64_t placements() const { return placements_; }
+  /** \brief The disk cache. */
+  const std::shared_ptr<SphereSetCache>& cache() const { return cache_; }
+
+ private:
+  std::uint64_t hashLocked(const std::shared_ptr<const TriangleMesh>& mesh);
+
+  std::shared_ptr<SphereSetCache> cache_;
+  FastLevel fastLevel_;
+  double gridRadius_;
+  bool keepBuilders_;
+  std::mutex mutex_;
+  std::map<std::string, std::shared_ptr<const TriangleMesh>> meshes_;        // key: path + options
+  // key: the mesh's address, checked against the weak pointer (an address can be reused after a free)
+  std::map<const TriangleMesh*, std::pair<std::weak_ptr<const TriangleMesh>, std::uint64_t>> hashes_;
+  std::map<std::uint64_t, std::shared_ptr<const ClodBuilder>> builders_;     // key: content hash
+  std::map<std::pair<const TriangleMesh*, std::uint64_t>, std::shared_ptr<const ClodDetector>> levels_;  // (mesh, d bits)
+  std::uint64_t placements_ = 0;
+};
+
+}  // namespace clod_haptics

@@ -1,0 +1,112 @@
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "clod_haptics/core/mesh.h"
+#include "clod_haptics/core/sphere_set.h"
+
+namespace clod_haptics {
+
+/** \brief Version of the binary sphere-set cache format; part of every cache key and file header. */
+constexpr std::uint32_t kSphereCacheFormatVersion = 1;
+
+/**
+ * \brief A 64-bit content hash of a loaded mesh: FNV-1a over the vertex coordinates (after scaling)
+ * and the triangle indices (after orientation), word by word, plus the counts. Two meshes with the
+ * same hash have, barring a collision, the same geometry, so they share cached sphere sets whatever
+ * their file name. The cache check of coverage catches a collision all the same.
+ */
+std::uint64_t meshContentHash(const TriangleMesh& mesh);
+
+/** \brief FNV-1a 64 over raw bytes, continuing from seed (the checksum of the cache files). */
+std::uint64_t fnv1a64(const void* data, std::size_t bytes, std::uint64_t seed = 0xcbf29ce484222325ull);
+
+/**
+ * \brief Writes a sphere set in the binary cache format: a header (magic, format version, mesh hash,
+ * clustering distance, counts), the flat arrays, the build statistics and the mesh name, then a
+ * checksum of everything before it.
+ * \throws FormatError when the file cannot be written.
+ */
+void writeSphereSetBinary(const ClodSphereSet& set, std::uint64_t meshHash, const std::string& path);
+
+/**
+ * \brief Reads a cache file and checks it against what the caller expects: magic, format version,
+ * mesh hash, clustering distance (bit for bit), sizes, checksum, then that the set fits the mesh
+ * (indices in range, every triangle listed by a sphere whose radius reaches its vertices). A file
+ * that passes can be used exactly like a freshly built set.
+ * \throws FormatError naming the first check that failed.
+ */
+ClodSphereSet readSphereSetBinary(const std::string& path, std::uint64_t meshHash, double distance,
+                                  const TriangleMesh& mesh);
+
+/**
+ * \brief The default cache directory: $CLOD_CACHE_DIR if set, else $ROS_HOME/clod_haptics_cache,
+ * else $HOME/.ros/clod_haptics_cache, else a directory under the system temp directory.
+ */
+std::string defaultSphereCacheDirectory();
+
+/** \brief Where a level came from. */
+enum class CacheSource : std::uint8_t {
+  Hit,      ///< read from a valid cache file
+  Built,    ///< no cache file: built and stored
+  Rebuilt,  ///< the cache file was stale or corrupt: deleted, built and stored again
+};
+
+/** \brief The lower-case name of a source ("hit", "built", "rebuilt"). */
+const char* toString(CacheSource source);
+
+/** \brief What one getOrBuild did, for logs and statistics. */
+struct CacheOutcome {
+  CacheSource source = CacheSource::Built;
+  std::string path;     ///< the cache file
+  std::string problem;  ///< why a file was rejected (Rebuilt), or why storing failed (empty: none)
+  double ms = 0.0;      ///< time spent reading or building and writing
+};
+
+/**
+ * \brief A disk cache of CLOD levels, one file per (mesh content hash, clustering distance, format
+ * version). A restart finds the files and does not rebuild; a stale or corrupt file is detected,
+ * deleted and rebuilt, never trusted. Files are written to a temporary name and renamed, so a crash
+ * or a concurrent writer never leaves a half-written file under the final name.
+ *
+ * Thread-safe: getOrBuild may run concurrently (two threads asking for the same level may both
+ * build it; the last rename wins and both results are valid).
+ */
+class SphereSetCache {
+ public:
+  /** \brief A cache in directory (created on the first store); empty means defaultSphereCacheDirectory(). */
+  explicit SphereSetCache(std::string directory = "");
+
+  /** \brief The file that holds the level (hash, d). */
+  std::string pathFor(std::uint64_t meshHash, double distance) const;
+
+  /**
+   * \brief The level (mesh, d) from the cache, or from build() when there is no valid file, which
+   * is then stored. build is called at most once and only on a miss, so a caller can construct its
+   * ClodBuilder (the expensive ray casts) inside it and skip it entirely on a hit. A failure to
+   * store is reported in outcome->problem and is not an error.
+   * \throws InvalidParameter for a negative or non-finite d; whatever build() throws.
+   */
+  std::shared_ptr<const ClodSphereSet> getOrBuild(const TriangleMesh& mesh, std::uint64_t meshHash, double distance,
+                                                  const std::function<ClodSphereSet()>& build,
+                                                  CacheOutcome* outcome = nullptr);
+
+  /** \brief The directory. */
+  const std::string& directory() const { return directory_; }
+  /** \brief Levels read from disk. */
+  std::uint64_t hits() const { return hits_.load(); }
+  /** \brief Levels built because no file existed. */
+  std::uint64_t misses() const { return misses_.load(); }
+  /** \brief Files rejected as stale or corrupt (and rebuilt). */
+  std::uint64_t rejected() const { return rejected_.load(); }
+
+ private:
+  std::string directory_;
+  std::atomic<std::uint64_t> hits_{0}, misses_{0}, rejected_{0};
+};
+
+}  // namespace clod_haptics

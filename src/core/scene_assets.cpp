@@ -1,0 +1,92 @@
+#include "clod_haptics/core/scene_assets.h"
+
+#include <chrono>
+#include <cstring>
+#include <sstream>
+
+#include "clod_haptics/core/errors.h"
+
+namespace clod_haptics {
+
+SceneAssets::SceneAssets(std::shared_ptr<SphereSetCache> cache, FastLevel fastLevel, double gridRadius,
+                         bool keepBuilders)
+    : cache_(std::move(cache)), fastLevel_(fastLevel), gridRadius_(gridRadius), keepBuilders_(keepBuilders) {
+  if (!cache_) cache_ = std::make_shared<SphereSetCache>();
+}
+
+std::shared_ptr<const TriangleMesh> SceneAssets::mesh(const std::string& path, const MeshLoadOptions& options) {
+  std::ostringstream key;
+  key.precision(17);
+  key << path << '|' << options.scale << '|' << options.normalize << '|' << options.orientOutward;
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto& slot = meshes_[key.str()];
+  if (!slot) {
+    try {
+      slot = std::make_shared<const TriangleMesh>(loadMesh(path, options));
+    } catch (...) {
+      meshes_.erase(key.str());
+      throw;
+    }
+  }
+  return slot;
+}
+
+std::uint64_t SceneAssets::hash(const std::shared_ptr<const TriangleMesh>& mesh) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return hashLocked(mesh);
+}
+
+std::uint64_t SceneAssets::hashLocked(const std::shared_ptr<const TriangleMesh>& mesh) {
+  auto it = hashes_.find(mesh.get());
+  if (it != hashes_.end() && it->second.first.lock() == mesh) return it->second.second;
+  const std::uint64_t h = meshContentHash(*mesh);
+  hashes_[mesh.get()] = {mesh, h};
+  return h;
+}
+
+std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
+                                                       LevelInfo* info) {
+  if (!mesh) throw InvalidParameter("SceneAssets::level: no mesh");
+  requireNonNegative(distance, "clustering distance");
+  if (distance == 0.0) distance = 0.0;
+  LevelInfo local;
+  LevelInfo& out = info ? *info : local;
+  out = LevelInfo();
+  std::uint64_t bits;
+  std::memcpy(&bits, &distance, sizeof(bits));
+
+  std::lock_guard<std::mutex> lock(mutex_);
+  // Keyed by the mesh object (which keeps it alive through the detector), so the detector handed out
+  // always refers to the very mesh the caller passed: SceneDetector checks that.
+  auto& slot = levels_[{mesh.get(), bits}];
+  if (slot) {
+    out.shared = true;
+    out.cache.source = CacheSource::Hit;
+    return slot;
+  }
+  const std::uint64_t h = hashLocked(mesh);
+  auto build = [&]() -> ClodSphereSet {
+    auto& builder = builders_[h];
+    std::shared_ptr<const ClodBuilder> use = builder;
+    if (!use) {
+      use = std::make_shared<const ClodBuilder>(mesh);
+      ++placements_;
+      if (keepBuilders_) builder = use;
+    }
+    if (!keepBuilders_) builders_.erase(h);
+    return use->build(distance);
+  };
+  std::shared_ptr<const ClodSphereSet> set;
+  try {
+    set = cache_->getOrBuild(*mesh, h, distance, build, &out.cache);
+    const auto start = std::chrono::steady_clock::now();
+    slot = std::make_shared<const ClodDetector>(mesh, set, fastLevel_, gridRadius_);
+    out.detectorMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  } catch (...) {
+    levels_.erase({mesh.get(), bits});
+    throw;
+  }
+  return slot;
+}
+
+}  // namespace clod_haptics

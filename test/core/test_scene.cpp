@@ -1,0 +1,342 @@
+// SceneDetector: several objects in different poses answer like bruteForceQuery per object (the test
+// transforms every probe itself), an object moved between queries, the scene-level rejection, levels
+// not ready yet, a full contact array, and a query that allocates nothing.
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdlib>
+#include <new>
+#include <random>
+#include <vector>
+
+#include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/probes.h"
+#include "clod_haptics/core/scene.h"
+#include "clod_haptics/core/sphere_set.h"
+#include "test_helpers.h"
+
+// ---- Allocation counter: the global operator new of this test binary counts while armed. ----
+namespace {
+std::atomic<bool> gCounting{false};
+std::atomic<long> gAllocations{0};
+void* countedAlloc(std::size_t n) {
+  if (gCounting.load(std::memory_order_relaxed)) gAllocations.fetch_add(1, std::memory_order_relaxed);
+  void* p = std::malloc(n ? n : 1);
+  if (p == nullptr) throw std::bad_alloc();
+  return p;
+}
+}  // namespace
+void* operator new(std::size_t n) { return countedAlloc(n); }
+void* operator new[](std::size_t n) { return countedAlloc(n); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+
+namespace {
+
+using namespace clod_haptics;
+
+constexpr double kRadius = 0.002;
+constexpr double kGapCentre = 0.08275;  // between torus_a and torus_b on the x axis
+
+Eigen::Isometry3d makePose(double x, double y, double z, double angle, const Vec3& axis) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translate(Vec3(x, y, z));
+  pose.rotate(Eigen::AngleAxisd(angle, axis.normalized()));
+  return pose;
+}
+
+/** The reference for one object: brute force on the probe transformed into the object frame by the test. */
+ContactResult reference(const TriangleMesh& mesh, const Eigen::Isometry3d& worldFromObject, const Vec3& world,
+                        double r) {
+  const Vec3 local = worldFromObject.inverse() * world;
+  return bruteForceQuery(mesh, local, r);
+}
+
+/** True when the reference distance is so close to r that rounding may decide either way. */
+bool onTheEdge(const ContactResult& ref, double r) { return std::abs(ref.distance - r) <= 1e-9 * r; }
+
+class SceneTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    torus_ = std::make_shared<const TriangleMesh>(loadMesh(std::string(CLOD_PACKAGE_DATA_DIR) + "/meshes/torus.obj"));
+    MeshLoadOptions boxOptions;
+    boxOptions.scale = 0.02;  // 8 x 4 x 2 cm
+    box_ = std::make_shared<const TriangleMesh>(loadMesh(clod_test::testData("box_4x2x1.obj"), boxOptions));
+    ClodBuilder torusBuilder(torus_);
+    torusLevel_ = std::make_shared<const ClodDetector>(
+        torus_, std::make_shared<const ClodSphereSet>(torusBuilder.build(0.003)), FastLevel::Grid, kRadius);
+    ClodBuilder boxBuilder(box_);
+    boxLevel_ = std::make_shared<const ClodDetector>(
+        box_, std::make_shared<const ClodSphereSet>(boxBuilder.build(0.005)), FastLevel::Hierarchy);
+  }
+  static void TearDownTestSuite() {
+    torusLevel_.reset();
+    boxLevel_.reset();
+    torus_.reset();
+    box_.reset();
+  }
+
+  /** Three tori (two of them interlocked, so a pointer can touch both) and a box, far from the third. */
+  void makeScene(SceneDetector& scene) {
+    scene.addObject("torus_a", torus_, torusLevel_, makePose(0, 0, 0, 0.0, Vec3::UnitZ()));
+    // Beside torus_a (outer radius 0.082), turned about its axis: 1.5 mm between the rims on the x axis,
+    // so a pointer there touches both.
+    scene.addObject("torus_b", torus_, torusLevel_, makePose(2 * kGapCentre, 0, 0, 0.3, Vec3::UnitZ()));
+    scene.addObject("torus_c", torus_, torusLevel_, makePose(0.5, 0.3, -0.2, 1.1, Vec3(1, 2, 3)));
+    scene.addObject("box", box_, boxLevel_, makePose(-0.3, 0.2, 0.1, -0.7, Vec3(0.3, -1, 0.2)));
+  }
+
+  /** Probes near every object's surface (in world), plus uniform ones over the whole scene. */
+  std::vector<Vec3> scenePrabes(const SceneDetector& scene, std::size_t perObject) {
+    std::vector<Vec3> probes;
+    for (std::uint32_t i = 0; i < scene.size(); ++i) {
+      for (const Vec3& p : nearSurfaceProbes(*scene.mesh(i), perObject, 2.5 * kRadius, 100 + i))
+        probes.push_back(scene.pose(i) * p);
+    }
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> u(-0.45, 0.65);
+    for (std::size_t k = 0; k < perObject; ++k) probes.emplace_back(u(rng), u(rng), u(rng));
+    std::uniform_real_distribution<double> g(-0.003, 0.003);
+    for (std::size_t k = 0; k < perObject / 10; ++k) probes.emplace_back(kGapCentre + g(rng), g(rng), g(rng));
+    return probes;
+  }
+
+  /** Checks one scene answer against brute force on every object. */
+  void expectMatchesReference(const SceneDetector& scene, const Vec3& p, double r, const SceneContact* contacts,
+                              const SceneQueryResult& out) {
+    std::uint32_t k = 0;
+    Vec3 penetration = Vec3::Zero();
+    for (std::uint32_t i = 0; i < scene.size(); ++i) {
+      const ContactResult ref = reference(*scene.mesh(i), scene.pose(i), p, r);
+      const bool listed = k < out.contacts && contacts[k].object == i;
+      if (onTheEdge(ref, r)) {
+        if (listed) ++k;
+        continue;
+      }
+      ASSERT_EQ(listed, ref.contact) << "object " << scene.name(i) << " probe " << p.transpose() << " ref distance "
+                                      << ref.distance;
+      if (!listed) continue;
+      const SceneContact& c = contacts[k++];
+      ASSERT_NEAR(c.local.distance, ref.distance, 1e-12);
+      ASSERT_NEAR(c.local.depth, r - ref.distance, 1e-12);
+      // The world point is the reference's closest point mapped to the world (ties may pick another
+      // triangle with the same point, so compare points, not indices).
+      ASSERT_LT((c.point - scene.pose(i) * ref.point).norm(), 1e-9);
+      ASSERT_NEAR((c.point - p).norm(), ref.distance, 1e-9);
+      ASSERT_NEAR(c.normal.norm(), 1.0, 1e-9);
+      ASSERT_LT((c.normal - scene.pose(i).linear() * c.local.normal).norm(), 1e-12);
+      penetration += c.local.depth * c.normal;
+    }
+    ASSERT_EQ(k, out.contacts);
+    ASSERT_EQ(out.touched, out.contacts);
+    ASSERT_EQ(out.contact, out.contacts > 0);
+    ASSERT_LT((out.penetration - penetration).norm(), 1e-12);
+    if (out.contact) {
+      ASSERT_GE(out.deepest, 0);
+      for (std::uint32_t j = 0; j < out.contacts; ++j) ASSERT_LE(contacts[j].local.depth, out.maxDepth);
+      ASSERT_EQ(contacts[out.deepest].local.depth, out.maxDepth);
+    } else {
+      ASSERT_EQ(out.deepest, -1);
+    }
+    ASSERT_EQ(out.objectsQueried + out.objectsRejected + out.objectsInactive, scene.size());
+  }
+
+  static std::shared_ptr<const TriangleMesh> torus_, box_;
+  static std::shared_ptr<const ClodDetector> torusLevel_, boxLevel_;
+};
+std::shared_ptr<const TriangleMesh> SceneTest::torus_, SceneTest::box_;
+std::shared_ptr<const ClodDetector> SceneTest::torusLevel_, SceneTest::boxLevel_;
+
+TEST_F(SceneTest, SeveralObjectsMatchBruteForcePerObject) {
+  SceneDetector scene;
+  makeScene(scene);
+  std::vector<SceneContact> contacts(scene.size());
+  std::vector<QueryCache> caches(scene.size());
+  std::size_t touching = 0, twoAtOnce = 0;
+  for (const Vec3& p : scenePrabes(scene, 1500)) {
+    SceneQueryResult out;
+    scene.query(p, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out, caches.data());
+    expectMatchesReference(scene, p, kRadius, contacts.data(), out);
+    if (HasFatalFailure()) return;
+    touching += out.contact;
+    twoAtOnce += out.contacts >= 2;
+  }
+  // The probe set must exercise contacts, and contacts with two objects at once.
+  EXPECT_GT(touching, 1000u);
+  EXPECT_GT(twoAtOnce, 0u) << "no probe touched the interlocked tori at once";
+}
+
+TEST_F(SceneTest, TwoObjectsAtOnceGiveTwoContactsAndTheSumOfPenetrations) {
+  SceneDetector scene;
+  makeScene(scene);
+  // Search the interlocked region for a pointer inside both tubes' contact range.
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-0.002, 0.002);
+  std::vector<SceneContact> contacts(scene.size());
+  for (int attempt = 0; attempt < 20000; ++attempt) {
+    const Vec3 p(kGapCentre + u(rng), u(rng), u(rng));
+    SceneQueryResult out;
+    scene.query(p, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out);
+    if (out.contacts < 2) continue;
+    expectMatchesReference(scene, p, kRadius, contacts.data(), out);
+    EXPECT_EQ(out.objectsQueried, 2u);
+    EXPECT_EQ(contacts[0].object, 0u);
+    EXPECT_EQ(contacts[1].object, 1u);
+    return;
+  }
+  FAIL() << "no pointer touched both interlocked tori";
+}
+
+TEST_F(SceneTest, MovedObjectAnswersAtItsNewPlaceWithoutRebuild) {
+  SceneDetector scene;
+  makeScene(scene);
+  const std::uint32_t moving = 2;
+  const ClodDetector* level = scene.detector(moving).get();
+  const Eigen::Isometry3d before = scene.pose(moving);
+  const std::vector<Vec3> nearBefore = [&] {
+    std::vector<Vec3> v;
+    for (const Vec3& p : nearSurfaceProbes(*torus_, 800, 0.5 * kRadius, 3)) v.push_back(before * p);
+    return v;
+  }();
+  std::vector<SceneContact> contacts(scene.size());
+  SceneQueryResult out;
+  for (int step = 0; step < 5; ++step) {
+    const Eigen::Isometry3d pose = makePose(-0.1 * step, 0.05 * step, 0.02 * step, 0.4 * step, Vec3(0, 1, 1));
+    scene.setPose(moving, pose);
+    EXPECT_EQ(scene.detector(moving).get(), level) << "moving must not rebuild";
+    EXPECT_LT((scene.boundCentre(moving) - pose * torus_->bounds().center()).norm(), 1e-12);
+    for (const Vec3& local : nearSurfaceProbes(*torus_, 400, 2.5 * kRadius, 40 + step)) {
+      const Vec3 p = pose * local;
+      scene.query(p, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out);
+      expectMatchesReference(scene, p, kRadius, contacts.data(), out);
+      if (HasFatalFailure()) return;
+    }
+    if (step > 0) {
+      // The old place is empty now: those probes touch nothing of the moved object.
+      for (const Vec3& p : nearBefore) {
+        scene.query(p, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out);
+        for (std::uint32_t k = 0; k < out.contacts; ++k) ASSERT_NE(contacts[k].object, moving);
+        expectMatchesReference(scene, p, kRadius, contacts.data(), out);
+        if (HasFatalFailure()) return;
+      }
+    }
+  }
+}
+
+TEST_F(SceneTest, FarObjectsAreRejectedByTheSceneBound) {
+  SceneDetector scene;
+  makeScene(scene);
+  std::vector<SceneContact> contacts(scene.size());
+  SceneQueryResult out;
+  scene.query(Vec3(5, 5, 5), kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out);
+  EXPECT_EQ(out.objectsRejected, scene.size());
+  EXPECT_EQ(out.objectsQueried, 0u);
+  EXPECT_FALSE(out.contact);
+  // Near the lone torus_c only it is queried; every other object is rejected before its spheres.
+  for (const Vec3& local : nearSurfaceProbes(*torus_, 200, kRadius, 9)) {
+    const Vec3 p = scene.pose(2) * local;
+    scene.query(p, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out);
+    EXPECT_EQ(out.objectsQueried, 1u);
+    EXPECT_EQ(out.objectsRejected, scene.size() - 1);
+    for (std::uint32_t k = 0; k < out.contacts; ++k) EXPECT_EQ(contacts[k].object, 2u);
+  }
+  // A bound is never too tight: every vertex of every object is within its bound.
+  for (std::uint32_t i = 0; i < scene.size(); ++i) {
+    for (const Vec3& v : scene.mesh(i)->vertices)
+      ASSERT_LE((scene.pose(i) * v - scene.boundCentre(i)).norm(), scene.boundRadius(i));
+  }
+}
+
+TEST_F(SceneTest, ObjectWithoutLevelIsAnsweredByBruteForceThenBySwappedLevel) {
+  SceneDetector scene;
+  makeScene(scene);
+  scene.setDetector(3, nullptr);
+  std::vector<SceneContact> contacts(scene.size());
+  SceneQueryResult out;
+  std::size_t bruteForce = 0;
+  for (const Vec3& local : nearSurfaceProbes(*box_, 500, 0.9 * kRadius, 21)) {
+    const Vec3 p = scene.pose(3) * local;
+    scene.query(p, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out);
+    bruteForce += out.bruteForce;
+    expectMatchesReference(scene, p, kRadius, contacts.data(), out);
+    if (HasFatalFailure()) return;
+  }
+  EXPECT_EQ(bruteForce, 500u);
+  scene.setDetector(3, boxLevel_);
+  scene.query(scene.pose(3) * box_->vertices[0], kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out);
+  EXPECT_EQ(out.bruteForce, 0u);
+  EXPECT_TRUE(out.contact);
+}
+
+TEST_F(SceneTest, InactiveObjectsAndAFullArray) {
+  SceneDetector scene;
+  makeScene(scene);
+  std::vector<SceneContact> contacts(scene.size());
+  SceneQueryResult out;
+  const Vec3 onA = torus_->vertices[0];  // on torus_a (identity pose)
+  scene.setActive(0, false);
+  scene.query(onA, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out);
+  EXPECT_EQ(out.objectsInactive, 1u);
+  for (std::uint32_t k = 0; k < out.contacts; ++k) EXPECT_NE(contacts[k].object, 0u);
+  scene.setActive(0, true);
+  scene.query(onA, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out);
+  ASSERT_TRUE(out.contact);
+  EXPECT_EQ(contacts[0].object, 0u);
+  // Capacity zero: nothing written, the combined answer still complete.
+  SceneQueryResult none;
+  scene.query(onA, kRadius, DetectionMode::Exact, nullptr, 0, none);
+  EXPECT_TRUE(none.contact);
+  EXPECT_EQ(none.contacts, 0u);
+  EXPECT_EQ(none.touched, out.touched);
+  EXPECT_EQ(none.deepest, -1);
+  EXPECT_LT((none.penetration - out.penetration).norm(), 1e-15);
+  // Non-finite input: no contact, no throw.
+  scene.query(Vec3(NAN, 0, 0), kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out);
+  EXPECT_FALSE(out.contact);
+  scene.query(onA, -1.0, DetectionMode::Exact, contacts.data(), contacts.size(), out);
+  EXPECT_FALSE(out.contact);
+}
+
+TEST_F(SceneTest, BadObjectsAreRefused) {
+  SceneDetector scene;
+  EXPECT_THROW(scene.addObject("none", nullptr, nullptr, Eigen::Isometry3d::Identity()), InvalidParameter);
+  EXPECT_THROW(scene.addObject("wrong level", box_, torusLevel_, Eigen::Isometry3d::Identity()), InvalidParameter);
+  Eigen::Isometry3d scaled = Eigen::Isometry3d::Identity();
+  scaled.linear() *= 2.0;
+  EXPECT_THROW(scene.addObject("scaled", torus_, torusLevel_, scaled), InvalidParameter);
+  Eigen::Isometry3d nan = Eigen::Isometry3d::Identity();
+  nan.translation().x() = NAN;
+  EXPECT_THROW(scene.addObject("nan", torus_, torusLevel_, nan), InvalidParameter);
+  const auto i = scene.addObject("ok", torus_, torusLevel_, Eigen::Isometry3d::Identity());
+  EXPECT_THROW(scene.setPose(i, scaled), InvalidParameter);
+  EXPECT_THROW(scene.setDetector(i, boxLevel_), InvalidParameter);
+  EXPECT_EQ(scene.size(), 1u);
+}
+
+TEST_F(SceneTest, QueryAllocatesNothing) {
+  SceneDetector scene;
+  makeScene(scene);
+  scene.setDetector(3, nullptr);  // the brute-force path too
+  std::vector<SceneContact> contacts(scene.size());
+  std::vector<QueryCache> caches(scene.size());
+  const std::vector<Vec3> probes = scenePrabes(scene, 200);
+  SceneQueryResult out;
+  std::size_t touched = 0;
+  gAllocations = 0;
+  gCounting = true;
+  for (const Vec3& p : probes) {
+    scene.query(p, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out, caches.data());
+    touched += out.touched;
+  }
+  gCounting = false;
+  EXPECT_EQ(gAllocations.load(), 0);
+  EXPECT_GT(touched, 0u);
+}
+
+}  // namespace
