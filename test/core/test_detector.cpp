@@ -1,0 +1,475 @@
+// ClodDetector against bruteForceQuery on 100,000 probes per shared mesh (near the surface and
+// uniform in the bounding box), in the three modes, plus a check that query() allocates nothing.
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <map>
+#include <new>
+#include <array>
+#include <vector>
+
+#include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/geometry.h"
+#include "clod_haptics/core/probes.h"
+#include "clod_haptics/core/sphere_set.h"
+#include "test_helpers.h"
+
+// ---- Allocation counter: the global operator new of this test binary counts while armed. ----
+namespace {
+std::atomic<bool> gCounting{false};
+std::atomic<long> gAllocations{0};
+void* countedAlloc(std::size_t n) {
+  if (gCounting.load(std::memory_order_relaxed)) gAllocations.fetch_add(1, std::memory_order_relaxed);
+  void* p = std::malloc(n ? n : 1);
+  if (p == nullptr) throw std::bad_alloc();
+  return p;
+}
+void* countedAlignedAlloc(std::size_t n, std::align_val_t align) {
+  if (gCounting.load(std::memory_order_relaxed)) gAllocations.fetch_add(1, std::memory_order_relaxed);
+  const std::size_t a = static_cast<std::size_t>(align);
+  void* p = std::aligned_alloc(a, (n + a - 1) / a * a);
+  if (p == nullptr) throw std::bad_alloc();
+  return p;
+}
+}  // namespace
+void* operator new(std::size_t n) { return countedAlloc(n); }
+void* operator new[](std::size_t n) { return countedAlloc(n); }
+void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
+  try {
+    return countedAlloc(n);
+  } catch (...) {
+    return nullptr;
+  }
+}
+void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
+  try {
+    return countedAlloc(n);
+  } catch (...) {
+    return nullptr;
+  }
+}
+void* operator new(std::size_t n, std::align_val_t a) { return countedAlignedAlloc(n, a); }
+void* operator new[](std::size_t n, std::align_val_t a) { return countedAlignedAlloc(n, a); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+
+namespace {
+
+using namespace clod_haptics;
+using Clock = std::chrono::steady_clock;
+
+constexpr unsigned kThreads = 2;
+constexpr std::size_t kNearProbes = 50000, kUniformProbes = 50000;
+constexpr double kMaxRadius = 0.02;  // brute force runs once at this radius; smaller radii are derived
+
+double seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
+
+// Brute force at kMaxRadius answers every smaller radius r too: the closest point does not depend on
+// r, and the contact is distance <= r. Probes within rounding of r are re-asked at r itself.
+bool referenceContact(const TriangleMesh& mesh, const Vec3& p, const ContactResult& atMax, double r) {
+  if (!atMax.contact) return false;
+  if (std::abs(atMax.distance - r) <= 1e-9 * r) return bruteForceQuery(mesh, p, r).contact;
+  return atMax.distance <= r;
+}
+
+// The reference, made affordable: bruteForceQuery(mesh, p, R) depends only on the triangles within R
+// of p (the closest one, if any, is among them; ties go to the lowest index and the sub-mesh keeps
+// the order). So probes are grouped by grid cell and bruteForceQuery runs on the sub-mesh of the
+// triangles whose bounding box grown by R meets the cell: the same answer, verified against the
+// full bruteForceQuery in ReferenceEqualsFullBruteForce.
+std::vector<ContactResult> referenceQueries(const TriangleMesh& mesh, const std::vector<Vec3>& probes, double R) {
+  const Eigen::AlignedBox3d box = mesh.bounds();
+  const double cell = std::max(2.0 * R, box.sizes().maxCoeff() / 64.0);
+  using Key = std::array<std::int64_t, 3>;
+  auto keyOf = [&](const Vec3& p) {
+    const Vec3 q = (p - box.min()) / cell;
+    return Key{std::int64_t(std::floor(q.x())), std::int64_t(std::floor(q.y())), std::int64_t(std::floor(q.z()))};
+  };
+  std::map<Key, std::vector<std::uint32_t>> cellTriangles;
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
+    Eigen::AlignedBox3d b;
+    for (int k = 0; k < 3; ++k) b.extend(mesh.vertex(t, k));
+    const Key lo = keyOf(b.min() - Vec3::Constant(R)), hi = keyOf(b.max() + Vec3::Constant(R));
+    for (std::int64_t x = lo[0]; x <= hi[0]; ++x)
+      for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
+        for (std::int64_t z = lo[2]; z <= hi[2]; ++z) cellTriangles[{x, y, z}].push_back(std::uint32_t(t));
+  }
+  std::map<Key, std::vector<std::size_t>> cellProbes;
+  for (std::size_t i = 0; i < probes.size(); ++i) cellProbes[keyOf(probes[i])].push_back(i);
+  std::vector<const std::pair<const Key, std::vector<std::size_t>>*> groups;
+  for (const auto& g : cellProbes) groups.push_back(&g);
+
+  std::vector<ContactResult> out(probes.size());
+  clod_test::parallelFor(groups.size(), kThreads, [&](std::size_t b, std::size_t e) {
+    for (std::size_t g = b; g < e; ++g) {
+      const auto it = cellTriangles.find(groups[g]->first);
+      if (it == cellTriangles.end()) continue;  // no triangle within R of this cell: no contact
+      const std::vector<std::uint32_t>& tris = it->second;  // ascending
+      std::vector<Vec3> vertices;
+      std::vector<Triangle> triangles;
+      std::map<std::uint32_t, std::uint32_t> local;
+      for (std::uint32_t t : tris) {
+        Triangle tri;
+        for (int k = 0; k < 3; ++k) {
+          const auto ins = local.emplace(mesh.triangles[t][k], std::uint32_t(vertices.size()));
+          if (ins.second) vertices.push_back(mesh.vertices[mesh.triangles[t][k]]);
+          tri[k] = ins.first->second;
+        }
+        triangles.push_back(tri);
+      }
+      const TriangleMesh sub = makeMesh(std::move(vertices), std::move(triangles), "cell");
+      for (std::size_t i : groups[g]->second) {
+        out[i] = bruteForceQuery(sub, probes[i], R);
+        if (out[i].contact) out[i].triangle = std::int32_t(tris[std::size_t(out[i].triangle)]);
+      }
+    }
+  });
+  return out;
+}
+
+struct Counts {
+  std::size_t probes = 0, contacts = 0, exactMismatch = 0, paperFalse = 0, paperMissEdge = 0, paperMissRounding = 0,
+              paperMissFace = 0, paperTooNear = 0, spheresMiss = 0, badResult = 0;
+  void add(const Counts& o) {
+    probes += o.probes;
+    contacts += o.contacts;
+    exactMismatch += o.exactMismatch;
+    paperFalse += o.paperFalse;
+    paperMissEdge += o.paperMissEdge;
+    paperMissRounding += o.paperMissRounding;
+    paperMissFace += o.paperMissFace;
+    paperTooNear += o.paperTooNear;
+    spheresMiss += o.spheresMiss;
+    badResult += o.badResult;
+  }
+};
+
+// The minimum barycentric coordinate of q in triangle t (long double), to tell a projection that
+// falls outside only by rounding from one that is really outside.
+double minBarycentric(const TriangleMesh& mesh, std::size_t t, const Vec3& q) {
+  using V = Eigen::Matrix<long double, 3, 1>;
+  const V a = mesh.vertex(t, 0).cast<long double>(), e0 = mesh.vertex(t, 1).cast<long double>() - a,
+          e1 = mesh.vertex(t, 2).cast<long double>() - a, x = q.cast<long double>() - a;
+  const long double d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1), d20 = x.dot(e0), d21 = x.dot(e1);
+  const long double den = d00 * d11 - d01 * d01;
+  if (!(den > 0)) return -1.0;
+  const long double v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
+  return static_cast<double>(std::min({1 - v - w, v, w}));
+}
+
+// A contact result is sane: finite, unit normal, depth = r - distance, point at that distance.
+bool sane(const ContactResult& c, const Vec3& p, double r, double tol) {
+  if (!c.contact) return true;
+  return c.point.allFinite() && c.normal.allFinite() && std::abs(c.normal.norm() - 1.0) < 1e-9 &&
+         std::isfinite(c.distance) && c.distance >= 0.0 && c.distance <= r + tol &&
+         std::abs(c.depth - (r - c.distance)) <= tol && std::abs((p - c.point).norm() - c.distance) <= tol;
+}
+
+Counts compareRange(const TriangleMesh& mesh, const ClodDetector& det, const std::vector<Vec3>& probes,
+                    const std::vector<ContactResult>& bf, double r, std::size_t begin, std::size_t end,
+                    std::size_t stride, std::vector<std::string>& failures) {
+  Counts k;
+  ContactResult exact, paper, spheres;
+  const double tolAbs = 1e-12 * mesh.diagonal();
+  auto fail = [&](const std::string& s) {
+    if (failures.size() < 10) failures.push_back(s);
+  };
+  for (std::size_t i = begin; i < end; ++i) {
+    if (i % stride != 0) continue;
+    ++k.probes;
+    const Vec3& p = probes[i];
+    const bool ref = referenceContact(mesh, p, bf[i], r);
+    k.contacts += ref;
+    det.query(p, r, DetectionMode::Exact, exact);
+    det.query(p, r, DetectionMode::Paper, paper);
+    det.query(p, r, DetectionMode::Spheres, spheres);
+    const double tol = 1e-9 * std::max(bf[i].distance, r);
+    // exact: identical flags, equal distances, a closest point on the named triangle.
+    if (exact.contact != ref || (ref && std::abs(exact.distance - bf[i].distance) > tol)) {
+      ++k.exactMismatch;
+      fail("exact probe " + std::to_string(i) + ": contact " + std::to_string(exact.contact) + " vs " +
+           std::to_string(ref) + ", distance " + std::to_string(exact.distance) + " vs " +
+           std::to_string(bf[i].distance));
+    }
+    if (exact.contact) {
+      const std::size_t t = static_cast<std::size_t>(exact.triangle);
+      const bool onTriangle =
+          exact.triangle >= 0 && t < mesh.size() &&
+          (closestPointOnTriangle(exact.point, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2)) - exact.point)
+                  .norm() <= tolAbs;
+      if (!onTriangle || !sane(exact, p, r, tolAbs + tol) || exact.sphere < 0) {
+        ++k.badResult;
+        fail("exact probe " + std::to_string(i) + ": inconsistent result fields");
+      }
+    }
+    // paper: never a contact brute force denies; misses only where the closest point is on an edge or vertex.
+    if (paper.contact && !ref) {
+      ++k.paperFalse;
+      fail("paper probe " + std::to_string(i) + " reports a contact brute force denies");
+    }
+    if (paper.contact && paper.distance < bf[i].distance - tol) ++k.paperTooNear;
+    if (paper.contact && !sane(paper, p, r, tolAbs + tol)) ++k.badResult;
+    if (ref && !paper.contact) {
+      const std::size_t t = static_cast<std::size_t>(bf[i].triangle);
+      TriangleFeature feature;
+      closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), &feature);
+      if (feature != TriangleFeature::Face) {
+        ++k.paperMissEdge;
+      } else if (minBarycentric(mesh, t, bf[i].point) <= 1e-9) {
+        ++k.paperMissRounding;  // on an edge to within rounding: Voronoi and cross-product tests disagree
+      } else {
+        ++k.paperMissFace;
+        fail("paper probe " + std::to_string(i) + " misses a contact inside triangle " + std::to_string(t));
+      }
+    }
+    // spheres: the coarsest answer never misses.
+    if (ref && !spheres.contact) {
+      ++k.spheresMiss;
+      fail("spheres probe " + std::to_string(i) + " misses a contact");
+    }
+  }
+  return k;
+}
+
+class DetectorVsBruteForce : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(DetectorVsBruteForce, HundredThousandProbes) {
+  const auto start = Clock::now();
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(GetParam()));
+  std::vector<Vec3> probes = nearSurfaceProbes(*mesh, kNearProbes, kMaxRadius, 11);
+  const auto uniform = uniformProbes(*mesh, kUniformProbes, kMaxRadius, 12);
+  probes.insert(probes.end(), uniform.begin(), uniform.end());
+  ASSERT_GE(probes.size(), 100000u);
+
+  const std::vector<ContactResult> bf = referenceQueries(*mesh, probes, kMaxRadius);
+  const double bfSeconds = seconds(start);
+  const auto builderStart = Clock::now();
+  const ClodBuilder builder(mesh);
+  std::printf("[ INFO     ] %s: placement %.1f s\n", GetParam().c_str(), seconds(builderStart));
+
+  struct Config {
+    double d;
+    FastLevel fast;
+    double r;
+    std::size_t stride;  // compare every stride-th probe
+  };
+  // The paper's working point d = 0.02 at two radii and the top of its d range on every probe; d = 0
+  // (every unclustered sphere) and the flat fast level on every 4th probe, to bound the run time.
+  for (const Config& cfg : {Config{0.02, FastLevel::Hierarchy, 0.005, 1}, Config{0.02, FastLevel::Hierarchy, kMaxRadius, 1},
+                            Config{0.08, FastLevel::Hierarchy, kMaxRadius, 1}, Config{0.0, FastLevel::Hierarchy, 0.005, 4},
+                            Config{0.02, FastLevel::Flat, 0.005, 4}}) {
+    const auto configStart = Clock::now();
+    const auto set = std::make_shared<const ClodSphereSet>(builder.build(cfg.d));
+    const ClodDetector det(mesh, set, cfg.fast);
+    {
+      const double r = cfg.r;
+      SCOPED_TRACE(GetParam() + " d=" + std::to_string(cfg.d) + " r=" + std::to_string(r) +
+                   (cfg.fast == FastLevel::Flat ? " flat" : " hierarchy"));
+      std::vector<Counts> parts(kThreads);
+      std::vector<std::vector<std::string>> failures(kThreads);
+      const std::size_t chunk = (probes.size() + kThreads - 1) / kThreads;
+      clod_test::parallelFor(probes.size(), kThreads, [&](std::size_t b, std::size_t e) {
+        const std::size_t part = b / chunk;
+        parts[part] = compareRange(*mesh, det, probes, bf, r, b, e, cfg.stride, failures[part]);
+      });
+      Counts k;
+      for (std::size_t t = 0; t < kThreads; ++t) {
+        k.add(parts[t]);
+        for (const auto& f : failures[t]) ADD_FAILURE() << f;
+      }
+      EXPECT_EQ(k.exactMismatch, 0u);
+      EXPECT_EQ(k.badResult, 0u);
+      EXPECT_EQ(k.paperFalse, 0u);
+      EXPECT_EQ(k.paperTooNear, 0u) << "paper's distance is to a surface point, never below the true one";
+      EXPECT_EQ(k.paperMissFace, 0u);
+      EXPECT_EQ(k.probes, (probes.size() + cfg.stride - 1) / cfg.stride);
+      EXPECT_LE(k.paperMissRounding, k.probes / 10000) << "rounding-only misses should be rare";
+      EXPECT_EQ(k.spheresMiss, 0u);
+      EXPECT_GT(k.contacts, k.probes / 50) << "the probe set must exercise contacts";
+      std::printf("[ INFO     ] %-22s d=%.2f r=%.3f %-9s: %zu spheres, %zu probes, %zu contacts, paper misses %zu "
+                  "(edge/vertex closest point; %zu more on an edge within rounding), %.1f s\n",
+                  GetParam().c_str(), cfg.d, r, cfg.fast == FastLevel::Flat ? "flat" : "hierarchy", set->size(),
+                  k.probes, k.contacts, k.paperMissEdge, k.paperMissRounding, seconds(configStart));
+    }
+  }
+  std::printf("[ INFO     ] %s: %zu triangles, reference %.1f s on %u threads, total %.1f s\n",
+              GetParam().c_str(), mesh->size(), bfSeconds, kThreads, seconds(start));
+}
+
+TEST_P(DetectorVsBruteForce, ReferenceEqualsFullBruteForce) {
+  // The culled reference gives exactly what the full bruteForceQuery gives.
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(GetParam()));
+  std::vector<Vec3> probes = nearSurfaceProbes(*mesh, 3000, kMaxRadius, 11);
+  const auto uniform = uniformProbes(*mesh, 1000, kMaxRadius, 12);
+  probes.insert(probes.end(), uniform.begin(), uniform.end());
+  const std::vector<ContactResult> culled = referenceQueries(*mesh, probes, kMaxRadius);
+  std::vector<ContactResult> full(probes.size());
+  clod_test::parallelFor(probes.size(), kThreads, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) full[i] = bruteForceQuery(*mesh, probes[i], kMaxRadius);
+  });
+  std::size_t contacts = 0;
+  for (std::size_t i = 0; i < probes.size(); ++i) {
+    ASSERT_EQ(culled[i].contact, full[i].contact) << "probe " << i;
+    if (!full[i].contact) continue;
+    ++contacts;
+    ASSERT_EQ(culled[i].distance, full[i].distance) << "probe " << i;
+    ASSERT_EQ(culled[i].point, full[i].point) << "probe " << i;
+    ASSERT_EQ(culled[i].triangle, full[i].triangle) << "probe " << i;
+    ASSERT_EQ(culled[i].normal, full[i].normal) << "probe " << i;
+  }
+  EXPECT_GT(contacts, probes.size() / 4);
+}
+
+INSTANTIATE_TEST_SUITE_P(SharedMeshes, DetectorVsBruteForce,
+                         ::testing::Values("degtri_sliding.off", "elephant.off", "head.off", "mannequin-devil.off",
+                                           "mesh_with_border.off", "refined_elephant.off"),
+                         [](const ::testing::TestParamInfo<std::string>& info) {
+                           std::string name = info.param.substr(0, info.param.find('.'));
+                           for (char& c : name)
+                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+                           return name;
+                         });
+
+TEST(DetectorVsBruteForceList, CoversEverySharedMesh) {
+  // The parameter list above must name every mesh of the shared directory.
+  const std::vector<std::string> known{"degtri_sliding.off", "elephant.off",         "head.off",
+                                       "mannequin-devil.off", "mesh_with_border.off", "refined_elephant.off"};
+  const auto meshes = clod_test::sharedMeshes();
+  ASSERT_FALSE(meshes.empty());
+  for (const auto& path : meshes)
+    EXPECT_NE(std::find(known.begin(), known.end(), clod_test::baseName(path)), known.end())
+        << "add " << path << " to DetectorVsBruteForce";
+}
+
+TEST(ClodDetector, QueryAllocatesNothing) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
+  const ClodBuilder builder(mesh);
+  std::vector<Vec3> probes = nearSurfaceProbes(*mesh, 5000, 0.02, 3);
+  const auto far = uniformProbes(*mesh, 1000, 0.5, 4);
+  probes.insert(probes.end(), far.begin(), far.end());
+  for (double d : {0.0, 0.02, 0.08})
+    for (FastLevel fast : {FastLevel::Hierarchy, FastLevel::Flat}) {
+      const ClodDetector det(mesh, std::make_shared<const ClodSphereSet>(builder.build(d)), fast);
+      ContactResult out;
+      std::size_t contacts = 0;
+      gAllocations = 0;
+      gCounting = true;
+      for (DetectionMode mode : {DetectionMode::Exact, DetectionMode::Paper, DetectionMode::Spheres})
+        for (const Vec3& p : probes)
+          for (double r : {0.0, 0.005, 0.05, 1.0}) {
+            det.query(p, r, mode, out);
+            contacts += out.contact;
+          }
+      gCounting = false;
+      EXPECT_EQ(gAllocations.load(), 0) << "d=" << d;
+      EXPECT_GT(contacts, 0u);
+    }
+  // The counter works: an allocation while armed is seen.
+  gAllocations = 0;
+  gCounting = true;
+  auto* leak = new std::vector<int>(10);
+  gCounting = false;
+  delete leak;
+  EXPECT_GE(gAllocations.load(), 1);
+}
+
+TEST(ClodDetector, InvalidQueriesAnswerNoContact) {
+  const auto mesh = clod_test::loadNormalized(clod_test::testData("cube.obj"));
+  const ClodBuilder builder(mesh);
+  const ClodDetector det(mesh, std::make_shared<const ClodSphereSet>(builder.build(0.02)));
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  ContactResult out;
+  for (DetectionMode mode : {DetectionMode::Exact, DetectionMode::Paper, DetectionMode::Spheres}) {
+    det.query(Vec3(0.5, 0.5, 1.0), 0.1, mode, out);
+    EXPECT_TRUE(out.contact) << toString(mode);
+    det.query(Vec3(nan, 0.5, 1.0), 0.1, mode, out);
+    EXPECT_FALSE(out.contact);
+    det.query(Vec3(0.5, inf, 1.0), 0.1, mode, out);
+    EXPECT_FALSE(out.contact);
+    det.query(Vec3(0.5, 0.5, 1.0), nan, mode, out);
+    EXPECT_FALSE(out.contact);
+    det.query(Vec3(0.5, 0.5, 1.0), inf, mode, out);
+    EXPECT_FALSE(out.contact);
+    det.query(Vec3(0.5, 0.5, 1.0), -0.1, mode, out);
+    EXPECT_FALSE(out.contact);
+  }
+  std::vector<std::uint32_t> hits{1, 2, 3};
+  det.hitSpheres(Vec3(nan, 0, 0), 0.1, hits);
+  EXPECT_TRUE(hits.empty());
+}
+
+TEST(ClodDetector, HitSpheresMatchesDirectOverlapTest) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("elephant.off"));
+  const ClodBuilder builder(mesh);
+  for (double d : {0.0, 0.04})
+    for (FastLevel fast : {FastLevel::Hierarchy, FastLevel::Flat}) {
+      const auto set = std::make_shared<const ClodSphereSet>(builder.build(d));
+      const ClodDetector det(mesh, set, fast);
+      const auto probes = uniformProbes(*mesh, 2000, 0.05, 21);
+      std::vector<std::uint32_t> hits;
+      for (const Vec3& p : probes) {
+        const double r = 0.01;
+        det.hitSpheres(p, r, hits);
+        ASSERT_TRUE(std::is_sorted(hits.begin(), hits.end()));
+        std::vector<std::uint32_t> direct;
+        for (std::size_t i = 0; i < set->size(); ++i) {
+          const double gap = (p - set->centres[i]).norm() - set->radii[i] - r;
+          if (gap <= 0) direct.push_back(static_cast<std::uint32_t>(i));
+          if (gap > 1e-9) {
+            ASSERT_EQ(std::count(hits.begin(), hits.end(), i), 0) << "sphere " << i << " too far";
+          }
+        }
+        for (std::uint32_t i : direct) ASSERT_TRUE(std::binary_search(hits.begin(), hits.end(), i)) << "missed " << i;
+      }
+    }
+}
+
+TEST(ClodDetector, FlatAndHierarchyGiveTheSameAnswers) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("mannequin-devil.off"));
+  const ClodBuilder builder(mesh);
+  const auto set = std::make_shared<const ClodSphereSet>(builder.build(0.03));
+  const ClodDetector tree(mesh, set, FastLevel::Hierarchy), flat(mesh, set, FastLevel::Flat);
+  const auto probes = nearSurfaceProbes(*mesh, 20000, 0.01, 5);
+  ContactResult a, b;
+  for (DetectionMode mode : {DetectionMode::Exact, DetectionMode::Paper, DetectionMode::Spheres})
+    for (const Vec3& p : probes) {
+      tree.query(p, 0.005, mode, a);
+      flat.query(p, 0.005, mode, b);
+      ASSERT_EQ(a.contact, b.contact) << toString(mode);
+      if (a.contact) {
+        ASSERT_EQ(a.distance, b.distance) << toString(mode);
+        ASSERT_EQ(a.triangle, b.triangle) << toString(mode);
+      }
+    }
+}
+
+TEST(FastLevel, Parses) {
+  FastLevel level;
+  EXPECT_TRUE(parseFastLevel("flat", level));
+  EXPECT_EQ(level, FastLevel::Flat);
+  EXPECT_TRUE(parseFastLevel("hierarchy", level));
+  EXPECT_EQ(level, FastLevel::Hierarchy);
+  EXPECT_FALSE(parseFastLevel("tree", level));
+  EXPECT_FALSE(parseFastLevel(nullptr, level));
+  DetectionMode mode;
+  for (DetectionMode m : {DetectionMode::Exact, DetectionMode::Paper, DetectionMode::Spheres}) {
+    EXPECT_TRUE(parseDetectionMode(toString(m), mode));
+    EXPECT_EQ(mode, m);
+  }
+  EXPECT_FALSE(parseDetectionMode("Exact", mode));
+  EXPECT_FALSE(parseDetectionMode(nullptr, mode));
+}
+
+}  // namespace
