@@ -1,7 +1,7 @@
 // The detector as a nodelet: onInit constructs the glue class and returns.
-#include <memory>
-
 #include <nodelet/nodelet.h>
+
+#include <memory>
 #include <pluginlib/class_list_macros.hpp>
 
 #include "clod_haptics/ros/haptic_detector.h"

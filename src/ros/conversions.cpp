@@ -154,8 +154,8 @@ void toMsg(const Vec3& force, geometry_msgs::Wrench& msg) {
 bool isFinite(const geometry_msgs::Pose& pose) {
   const auto& p = pose.position;
   const auto& q = pose.orientation;
-  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && std::isfinite(q.x) &&
-         std::isfinite(q.y) && std::isfinite(q.z) && std::isfinite(q.w);
+  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && std::isfinite(q.x) && std::isfinite(q.y) &&
+         std::isfinite(q.z) && std::isfinite(q.w);
 }
 
 }  // namespace clod_haptics

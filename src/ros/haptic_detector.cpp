@@ -1,12 +1,12 @@
 #include "clod_haptics/ros/haptic_detector.h"
 
-#include <chrono>
-#include <cmath>
-#include <limits>
-
 #include <geometry_msgs/WrenchStamped.h>
 #include <tf2/exceptions.h>
 #include <visualization_msgs/MarkerArray.h>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
 
 #include "clod_haptics/Contact.h"
 #include "clod_haptics/DetectorStatus.h"
@@ -43,7 +43,8 @@ HapticDetector::HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   statusPub_ = pnh_.advertise<DetectorStatus>("status", 1, true);
   // A new marker subscriber gets the mesh and spheres again.
   markerPub_ = displayPnh_.advertise<visualization_msgs::MarkerArray>(
-      "markers", 10, [this](const ros::SingleSubscriberPublisher&) { staticDirty_ = true; }, ros::SubscriberStatusCallback());
+      "markers", 10, [this](const ros::SingleSubscriberPublisher&) { staticDirty_ = true; },
+      ros::SubscriberStatusCallback());
   tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_, nh_);
 
   worker_ = std::thread(&HapticDetector::levelWorker, this);
@@ -54,8 +55,8 @@ HapticDetector::HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
 
   poseSub_ = nh_.subscribe(poseTopic_, static_cast<std::uint32_t>(poseQueueSize_), &HapticDetector::onPose, this,
                            ros::TransportHints().tcpNoDelay());
-  displayTimer_ = displayPnh_.createSteadyTimer(ros::WallDuration(1.0 / markerRate_), &HapticDetector::onDisplayTimer,
-                                                this);
+  displayTimer_ =
+      displayPnh_.createSteadyTimer(ros::WallDuration(1.0 / markerRate_), &HapticDetector::onDisplayTimer, this);
   statusTimer_ = displayPnh_.createSteadyTimer(ros::WallDuration(1.0), &HapticDetector::onStatusTimer, this);
   displaySpinner_ = std::make_unique<ros::AsyncSpinner>(1, &displayQueue_);
   displaySpinner_->start();
@@ -77,8 +78,8 @@ HapticDetector::~HapticDetector() {
 
 void HapticDetector::readParameters() {
   if (!pnh_.getParam("mesh", meshUri_) || meshUri_.empty()) {
-    throw MeshLoadError("", "required parameter " + pnh_.resolveName("mesh") +
-                                " is not set (a mesh path or a package:// URI)");
+    throw MeshLoadError(
+        "", "required parameter " + pnh_.resolveName("mesh") + " is not set (a mesh path or a package:// URI)");
   }
   pnh_.param<std::string>("frame_id", meshFrame_, "world");
   pnh_.param<std::string>("pose_topic", poseTopic_, "/phantom/pose");
@@ -165,8 +166,8 @@ void HapticDetector::onPose(const geometry_msgs::PoseStampedConstPtr& msg) {
   contact->level_spheres = level ? level->spheres : 0;
 
   // The force in the pose's frame, where the device renders it.
-  const Vec3 forceMesh = penaltyForce(result, stiffness_.load(std::memory_order_relaxed),
-                                      maxForce_.load(std::memory_order_relaxed));
+  const Vec3 forceMesh =
+      penaltyForce(result, stiffness_.load(std::memory_order_relaxed), maxForce_.load(std::memory_order_relaxed));
   auto wrench = boost::make_shared<geometry_msgs::WrenchStamped>();
   wrench->header.stamp = msg->header.stamp;
   wrench->header.frame_id = poseFrame.empty() ? meshFrame_ : poseFrame;
@@ -365,9 +366,9 @@ void HapticDetector::publishMarkers() {
     if (!showContact_) shown.contact = false;
     appendContactMarkers(shown, std::max(8.0 * last.radius, 0.01), header, *array);
     if (showPointer_) {
-      array->markers.push_back(pointerMarker(last.pointer, last.radius, header,
-                                             last.result.contact ? makeColor(1.0f, 0.2f, 0.2f, 0.9f)
-                                                                 : makeColor(0.1f, 0.9f, 0.2f, 0.9f)));
+      array->markers.push_back(
+          pointerMarker(last.pointer, last.radius, header,
+                        last.result.contact ? makeColor(1.0f, 0.2f, 0.2f, 0.9f) : makeColor(0.1f, 0.9f, 0.2f, 0.9f)));
     } else {
       array->markers.push_back(deleteMarker(marker_ns::kPointer, 0, header));
     }

@@ -22,7 +22,8 @@ std::string resolveMeshPath(const std::string& uri) {
   }
   const std::size_t scheme = uri.find("://");
   if (scheme != std::string::npos && uri.find('/') > scheme) {
-    throw MeshLoadError(uri, "unsupported URI scheme '" + uri.substr(0, scheme) + "' (use a path, file:// or package://)");
+    throw MeshLoadError(uri,
+                        "unsupported URI scheme '" + uri.substr(0, scheme) + "' (use a path, file:// or package://)");
   }
   return uri;
 }

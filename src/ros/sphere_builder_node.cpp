@@ -41,8 +41,8 @@ SphereBuilderNode::SphereBuilderNode(ros::NodeHandle nh, ros::NodeHandle pnh) : 
 
 void SphereBuilderNode::readParameters() {
   if (!pnh_.getParam("mesh", meshUri_) || meshUri_.empty()) {
-    throw MeshLoadError("", "required parameter " + pnh_.resolveName("mesh") +
-                                " is not set (a mesh path or a package:// URI)");
+    throw MeshLoadError(
+        "", "required parameter " + pnh_.resolveName("mesh") + " is not set (a mesh path or a package:// URI)");
   }
   pnh_.param<std::string>("frame_id", frameId_, "world");
   pnh_.param("scale", scale_, 1.0);
@@ -114,8 +114,8 @@ bool SphereBuilderNode::onGetSphereSet(GetSphereSet::Request& request, GetSphere
     response.success = true;
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     std::ostringstream text;
-    text << (built ? "built" : "cached") << ": d = " << set->distance << ", " << set->size() << " spheres ("
-         << ms << " ms)";
+    text << (built ? "built" : "cached") << ": d = " << set->distance << ", " << set->size() << " spheres (" << ms
+         << " ms)";
     response.message = text.str();
     ROS_DEBUG("sphere_builder: %s", response.message.c_str());
   } catch (const ClodError& e) {

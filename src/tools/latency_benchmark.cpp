@@ -6,6 +6,12 @@
 //
 //   rosrun clod_haptics latency_benchmark _mesh:=<file> _scale:=0.005 _duration:=60 _rate:=1000
 // (see launch/latency_benchmark.launch, which also starts an out-of-process marker subscriber).
+#include <geometry_msgs/PoseStamped.h>
+#include <nodelet/loader.h>
+#include <ros/callback_queue.h>
+#include <ros/ros.h>
+#include <visualization_msgs/MarkerArray.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -13,12 +19,6 @@
 #include <cstdio>
 #include <thread>
 #include <vector>
-
-#include <geometry_msgs/PoseStamped.h>
-#include <nodelet/loader.h>
-#include <ros/callback_queue.h>
-#include <ros/ros.h>
-#include <visualization_msgs/MarkerArray.h>
 
 #include "clod_haptics/Contact.h"
 #include "clod_haptics/DetectorStatus.h"
@@ -96,7 +96,8 @@ int main(int argc, char** argv) {
   qnh.setCallbackQueue(&queue);
   const std::int64_t stampBase = 1000000000LL;  // measured pose i has stamp 1 s + i ns (warm-up: below 1 s)
   auto contactSub = qnh.subscribe<clod_haptics::Contact>(
-      detectorName + "/contact", 10000, [&](const clod_haptics::ContactConstPtr& c) {
+      detectorName + "/contact", 10000,
+      [&](const clod_haptics::ContactConstPtr& c) {
         const std::int64_t t = nowNs();
         if (!measuring) return;
         const std::int64_t i = static_cast<std::int64_t>(c->header.stamp.toNSec()) - stampBase;
@@ -108,7 +109,8 @@ int main(int argc, char** argv) {
       },
       ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
   auto markerSub = qnh.subscribe<visualization_msgs::MarkerArray>(
-      detectorName + "/markers", 10, [&](const visualization_msgs::MarkerArrayConstPtr&) { markerArrays.fetch_add(1); });
+      detectorName + "/markers", 10,
+      [&](const visualization_msgs::MarkerArrayConstPtr&) { markerArrays.fetch_add(1); });
   ros::AsyncSpinner spinner(1, &queue);
   spinner.start();
   ros::AsyncSpinner globalSpinner(1);
@@ -124,7 +126,8 @@ int main(int argc, char** argv) {
   ros::NodeHandle snh;
   std::atomic<std::uint32_t> levelSpheres{0};
   auto statusSub = snh.subscribe<clod_haptics::DetectorStatus>(
-      detectorName + "/status", 1, [&](const clod_haptics::DetectorStatusConstPtr& s) { levelSpheres = s->level_spheres; });
+      detectorName + "/status", 1,
+      [&](const clod_haptics::DetectorStatusConstPtr& s) { levelSpheres = s->level_spheres; });
   const auto waitStart = std::chrono::steady_clock::now();
   while (ros::ok() && (levelSpheres == 0 || posePub.getNumSubscribers() == 0 || markerSub.getNumPublishers() == 0)) {
     if (std::chrono::steady_clock::now() - waitStart > std::chrono::seconds(120)) {
@@ -187,8 +190,8 @@ int main(int argc, char** argv) {
   std::printf("\n== latency_benchmark: detector nodelet, intra-process ==\n");
   std::printf("mesh %s: %zu triangles, scale %g%s; level: %u spheres; pointer radius %g\n", mesh.name.c_str(),
               mesh.size(), scale, normalize ? " (normalised)" : "", levelSpheres.load(), radius);
-  std::printf("poses sent %zu at %.0f Hz over %.1f s; answered %zu; unanswered %zu; in contact %zu (%.1f %%)\n",
-              total, rate, streamed, lat.size(), unanswered, contacts, lat.empty() ? 0.0 : 100.0 * contacts / lat.size());
+  std::printf("poses sent %zu at %.0f Hz over %.1f s; answered %zu; unanswered %zu; in contact %zu (%.1f %%)\n", total,
+              rate, streamed, lat.size(), unanswered, contacts, lat.empty() ? 0.0 : 100.0 * contacts / lat.size());
   std::printf("marker arrays received while streaming: %" PRIu64 " (%.1f Hz)\n", markerCount, markerCount / streamed);
   std::printf("pose -> contact latency (us): median %.1f  p90 %.1f  p99 %.1f  p99.9 %.1f  max %.1f\n",
               percentile(lat, 0.5), percentile(lat, 0.9), percentile(lat, 0.99), percentile(lat, 0.999),

@@ -1,9 +1,9 @@
 // Conversions core <-> messages (no roscore).
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <memory>
-
-#include <gtest/gtest.h>
 
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/detector.h"

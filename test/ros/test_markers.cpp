@@ -1,8 +1,8 @@
 // Marker conversions (no roscore).
+#include <gtest/gtest.h>
+
 #include <set>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/mesh_loader.h"

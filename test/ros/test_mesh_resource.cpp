@@ -1,7 +1,7 @@
 // Mesh parameter resolution: paths, file:// and package:// (needs ROS_PACKAGE_PATH, no roscore).
-#include <fstream>
-
 #include <gtest/gtest.h>
+
+#include <fstream>
 
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/ros/mesh_resource.h"

@@ -1,13 +1,12 @@
 // rostest: a node started without a usable mesh must log a clear error and exit non-zero, not hang.
 // Runs the real binaries (paths configured by CMake) against the test's master.
+#include <gtest/gtest.h>
+#include <ros/ros.h>
 #include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
 #include <string>
-
-#include <gtest/gtest.h>
-#include <ros/ros.h>
 
 #include "clod_haptics/test_config.h"
 
@@ -65,9 +64,9 @@ TEST(BadParameters, DetectorNodeWithoutMeshParameterExitsNonZero) {
 
 TEST(BadParameters, SphereBuilderWithAGoodMeshKeepsRunning) {
   // The control: the same binary with a good mesh is still running when the time limit ends it.
-  const Outcome o = run(std::string(CLOD_SPHERE_BUILDER_PATH) +
-                            " __name:=sb_good _mesh:=package://clod_haptics/data/meshes/torus.obj",
-                        "-s INT 8");
+  const Outcome o = run(
+      std::string(CLOD_SPHERE_BUILDER_PATH) + " __name:=sb_good _mesh:=package://clod_haptics/data/meshes/torus.obj",
+      "-s INT 8");
   EXPECT_TRUE(o.exitCode == 124 || o.exitCode == 0) << o.exitCode << ": " << o.output;
   EXPECT_NE(o.output.find("serving"), std::string::npos) << o.output;
 }

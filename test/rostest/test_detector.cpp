@@ -3,19 +3,19 @@
 // Parameters (~): mesh, scale, normalize (same as the detector's), detector (its namespace),
 // pose_frame (frame the test publishes poses in), mesh_in_pose_frame ([x y z yaw pitch roll], the
 // mesh frame's pose in pose_frame as given to static_transform_publisher; empty: same frame).
-#include <atomic>
-#include <cmath>
-#include <map>
-#include <mutex>
-#include <set>
-#include <thread>
-
 #include <dynamic_reconfigure/Reconfigure.h>
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/WrenchStamped.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <tf2_ros/static_transform_broadcaster.h>
+
+#include <atomic>
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <set>
+#include <thread>
 
 #include "clod_haptics/Contact.h"
 #include "clod_haptics/DetectorStatus.h"
@@ -267,7 +267,8 @@ TEST(Detector, NanPoseAndUnknownFrameAreDroppedCountedAndTheDetectorKeepsRunning
   EXPECT_TRUE(dc.waitStatus([&](const DetectorStatus& s) {
     return s.dropped_non_finite >= before.dropped_non_finite + 2 &&
            s.dropped_unknown_frame >= before.dropped_unknown_frame + 1;
-  })) << "the drops were not counted in " << dc.ns() << "/status";
+  })) << "the drops were not counted in "
+      << dc.ns() << "/status";
 }
 
 TEST(Detector, ReconfigureDuringAStreamChangesTheLevelAndAnswersEveryPose) {

@@ -1,14 +1,14 @@
 // rostest of sphere_builder: service round trip against the core's ClodBuilder, bad requests, one
 // build for concurrent requests of a level, the latched default level.
 // Parameters (~): mesh, scale, normalize (same as the node's), distances (list), default_distance.
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+
 #include <atomic>
 #include <cmath>
 #include <limits>
 #include <thread>
 #include <vector>
-
-#include <gtest/gtest.h>
-#include <ros/ros.h>
 
 #include "clod_haptics/GetSphereSet.h"
 #include "clod_haptics/SphereSet.h"
@@ -70,7 +70,8 @@ TEST(SphereBuilder, RoundTripMatchesTheCoreCountAndShrinksWithDistance) {
 
 TEST(SphereBuilder, BadRequestsAreRefusedAndTheNodeKeepsServing) {
   ASSERT_TRUE(ros::service::waitForService(kService, ros::Duration(60.0)));
-  for (double bad : {-0.01, -1e-12, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+  for (double bad :
+       {-0.01, -1e-12, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
     GetSphereSet srv;
     ASSERT_TRUE(call(bad, srv)) << "the service must answer, not fail, for d = " << bad;
     EXPECT_FALSE(srv.response.success) << "d = " << bad;

@@ -1,10 +1,10 @@
 #pragma once
 
-#include <string>
-
 #include <geometry_msgs/Pose.h>
 #include <geometry_msgs/WrenchStamped.h>
 #include <std_msgs/Header.h>
+
+#include <string>
 
 #include "clod_haptics/Contact.h"
 #include "clod_haptics/SphereSet.h"

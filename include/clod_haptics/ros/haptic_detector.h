@@ -1,5 +1,12 @@
 #pragma once
 
+#include <dynamic_reconfigure/server.h>
+#include <geometry_msgs/PoseStamped.h>
+#include <ros/callback_queue.h>
+#include <ros/ros.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -8,13 +15,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <dynamic_reconfigure/server.h>
-#include <geometry_msgs/PoseStamped.h>
-#include <ros/callback_queue.h>
-#include <ros/ros.h>
-#include <tf2_ros/buffer.h>
-#include <tf2_ros/transform_listener.h>
 
 #include "clod_haptics/DetectorConfig.h"
 #include "clod_haptics/core/contact.h"

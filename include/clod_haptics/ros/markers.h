@@ -1,13 +1,13 @@
 #pragma once
 
-#include <cstdint>
-#include <string>
-#include <vector>
-
 #include <std_msgs/ColorRGBA.h>
 #include <std_msgs/Header.h>
 #include <visualization_msgs/Marker.h>
 #include <visualization_msgs/MarkerArray.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
 
 #include "clod_haptics/core/contact.h"
 #include "clod_haptics/core/mesh.h"

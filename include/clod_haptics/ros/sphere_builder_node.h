@@ -1,13 +1,13 @@
 #pragma once
 
+#include <ros/ros.h>
+
 #include <cstddef>
 #include <future>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <string>
-
-#include <ros/ros.h>
 
 #include "clod_haptics/GetSphereSet.h"
 #include "clod_haptics/core/sphere_set.h"

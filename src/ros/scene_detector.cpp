@@ -1,0 +1,432 @@
+#include "clod_haptics/ros/scene_detector.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <geometry_msgs/WrenchStamped.h>
+#include <tf2/exceptions.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include "clod_haptics/ContactArray.h"
+#include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/mesh_loader.h"
+#include "clod_haptics/ros/conversions.h"
+#include "clod_haptics/ros/markers.h"
+#include "clod_haptics/ros/mesh_resource.h"
+
+namespace clod_haptics {
+
+namespace {
+
+Eigen::Isometry3d toIsometry(const geometry_msgs::Transform& t) {
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.translate(Vec3(t.translation.x, t.translation.y, t.translation.z));
+  out.rotate(Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z).normalized());
+  return out;
+}
+
+/** Moves sphere markers from mesh coordinates to the object's frame (the offset is rigid). */
+void applyOffset(const Eigen::Isometry3d& offset, std::size_t first, visualization_msgs::MarkerArray& array) {
+  for (std::size_t k = first; k < array.markers.size(); ++k) {
+    auto& m = array.markers[k];
+    if (m.action != visualization_msgs::Marker::ADD) continue;
+    m.pose.position = toPoint(offset * fromPoint(m.pose.position));
+  }
+}
+
+}  // namespace
+
+SceneHapticDetector::SceneHapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh)
+    : nh_(nh), pnh_(pnh), displayPnh_(pnh) {
+  displayPnh_.setCallbackQueue(&displayQueue_);
+  readParameters();
+
+  assets_ = std::make_unique<SceneAssets>(std::make_shared<SphereSetCache>(cacheDir_), fastLevel_, radius_);
+  const auto start = std::chrono::steady_clock::now();
+  std::size_t triangles = 0;
+  for (const SceneObjectConfig& object : config_.objects) {
+    ObjectState state;
+    state.config = object;
+    state.meshPath = resolveMeshPath(object.mesh);
+    MeshLoadOptions options;
+    options.scale = object.scale;
+    auto mesh = assets_->mesh(state.meshPath, options);  // shared when several objects use the same file
+    triangles += mesh->size();
+    state.viaTf = object.frameId != config_.frameId;
+    state.poseKnown = !state.viaTf;
+    const auto index = scene_.addObject(object.name, mesh, nullptr, object.offset);
+    scene_.setActive(index, state.poseKnown);
+    objects_.push_back(state);
+  }
+  std::vector<std::string> drawn;
+  if (pnh_.getParam("marker_objects", drawn) && !drawn.empty()) {
+    for (auto& o : objects_) o.drawn = std::find(drawn.begin(), drawn.end(), o.config.name) != drawn.end();
+  }
+  const std::size_t n = objects_.size();
+  contacts_.resize(n);
+  caches_.resize(n);
+  ready_.resize(n);
+  shownLevels_.resize(n);
+  shownSpheres_.assign(n, 0);
+  shownHit_.assign(n, 0);
+  shownContact_.assign(n, 0);
+  ROS_INFO("scene_detector: %zu objects (%zu triangles) loaded in %.0f ms, scene frame '%s', level cache %s", n,
+           triangles, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
+           config_.frameId.c_str(), assets_->cache()->directory().c_str());
+
+  contactsPub_ = pnh_.advertise<ContactArray>("contacts", 100);
+  forcePub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("force", 100);
+  // A new marker subscriber gets the meshes and levels once; afterwards only what changes.
+  markerPub_ = displayPnh_.advertise<visualization_msgs::MarkerArray>(
+      "markers", 10, [this](const ros::SingleSubscriberPublisher&) { staticDirty_ = true; },
+      ros::SubscriberStatusCallback());
+  tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_, nh_);
+
+  worker_ = std::thread(&SceneHapticDetector::levelWorker, this);
+  poseSub_ = nh_.subscribe(poseTopic_, static_cast<std::uint32_t>(poseQueueSize_), &SceneHapticDetector::onPose, this,
+                           ros::TransportHints().tcpNoDelay());
+  displayTimer_ = displayPnh_.createSteadyTimer(ros::WallDuration(1.0 / markerRate_),
+                                                &SceneHapticDetector::onDisplayTimer, this);
+  displaySpinner_ = std::make_unique<ros::AsyncSpinner>(1, &displayQueue_);
+  displaySpinner_->start();
+}
+
+SceneHapticDetector::~SceneHapticDetector() {
+  poseSub_.shutdown();
+  displayTimer_.stop();
+  if (displaySpinner_) displaySpinner_->stop();
+  stop_ = true;
+  if (worker_.joinable()) worker_.join();
+}
+
+void SceneHapticDetector::readParameters() {
+  XmlRpc::XmlRpcValue scene;
+  if (!pnh_.getParam("scene", scene)) {
+    throw InvalidParameter("required parameter " + pnh_.resolveName("scene") +
+                           " is not set (load a scene file: <rosparam file=\"scene.yaml\" ns=\"scene\"/>)");
+  }
+  double defaultDistance;
+  pnh_.param("default_distance", defaultDistance, 0.003);
+  config_ = parseSceneConfig(scene, defaultDistance);
+  pnh_.param<std::string>("pose_topic", poseTopic_, "/phantom/pose");
+  pnh_.param<std::string>("cache_dir", cacheDir_, "");
+  pnh_.param("pointer_radius", radius_, 0.002);
+  pnh_.param("stiffness", stiffness_, 500.0);
+  pnh_.param("max_force", maxForce_, 0.0);
+  pnh_.param("marker_rate", markerRate_, 30.0);
+  pnh_.param("static_retry", staticRetry_, 0.5);
+  pnh_.param("pose_queue_size", poseQueueSize_, 100);
+  std::string mode, fast;
+  pnh_.param<std::string>("detection_mode", mode, "exact");
+  pnh_.param<std::string>("fast_level", fast, "grid");
+  if (!parseDetectionMode(mode.c_str(), mode_)) {
+    throw InvalidParameter("~detection_mode must be exact, paper or spheres, not '" + mode + "'");
+  }
+  if (!parseFastLevel(fast.c_str(), fastLevel_)) {
+    throw InvalidParameter("~fast_level must be grid, hierarchy or flat, not '" + fast + "'");
+  }
+  if (!std::isfinite(radius_) || radius_ < 0.0) throw InvalidParameter("~pointer_radius must be finite and >= 0");
+  if (!std::isfinite(stiffness_) || stiffness_ < 0.0) throw InvalidParameter("~stiffness must be finite and >= 0");
+  if (!std::isfinite(maxForce_) || maxForce_ < 0.0) throw InvalidParameter("~max_force must be finite and >= 0");
+  if (!(markerRate_ > 0.0) || markerRate_ > 200.0) throw InvalidParameter("~marker_rate must be in (0, 200] Hz");
+  if (!(staticRetry_ > 0.0)) throw InvalidParameter("~static_retry must be positive");
+  if (poseQueueSize_ < 1) throw InvalidParameter("~pose_queue_size must be at least 1");
+}
+
+// ------------------------------------------------------------------------------------------------
+// Levels: prepared by the worker (disk cache or build), swapped in by the pose thread.
+
+void SceneHapticDetector::levelWorker() {
+  for (std::size_t i = 0; i < objects_.size() && !stop_; ++i) {
+    const auto& object = objects_[i];
+    try {
+      SceneAssets::LevelInfo info;
+      auto level = assets_->level(scene_.mesh(static_cast<std::uint32_t>(i)), object.config.distance, &info);
+      {
+        std::lock_guard<std::mutex> lock(readyMutex_);
+        ready_[i] = level;
+      }
+      readyPending_ = true;
+      levelsReady_.fetch_add(1);
+      levelsDirty_ = true;
+      if (!info.cache.problem.empty()) {
+        ROS_WARN("scene_detector: '%s': %s", object.config.name.c_str(), info.cache.problem.c_str());
+      }
+      ROS_INFO("scene_detector: '%s' level d = %g ready: %zu spheres, %s%s (%.0f ms + %.0f ms detector)",
+               object.config.name.c_str(), object.config.distance, level->spheres()->size(),
+               info.shared ? "shared with another object" : toString(info.cache.source),
+               info.shared ? "" : (" " + info.cache.path).c_str(), info.cache.ms, info.detectorMs);
+    } catch (const std::exception& e) {
+      ROS_ERROR("scene_detector: '%s': cannot prepare level d = %g: %s; answering it by brute force",
+                object.config.name.c_str(), object.config.distance, e.what());
+    }
+  }
+}
+
+void SceneHapticDetector::swapInReadyLevels() {
+  if (!readyPending_.exchange(false)) return;
+  std::lock_guard<std::mutex> lock(readyMutex_);
+  for (std::uint32_t i = 0; i < ready_.size(); ++i) {
+    if (ready_[i] && scene_.detector(i) != ready_[i]) scene_.setDetector(i, ready_[i]);
+  }
+}
+
+// ------------------------------------------------------------------------------------------------
+// The haptic path.
+
+bool SceneHapticDetector::updatePoses(const ros::Time& stamp) {
+  bool allKnown = true;
+  for (std::uint32_t i = 0; i < objects_.size(); ++i) {
+    ObjectState& o = objects_[i];
+    if (!o.viaTf || (o.poseKnown && !o.config.moving)) continue;
+    if (!o.config.moving) {
+      // A static frame: looked up once, retried now and then until tf2 knows it.
+      const ros::WallTime now = ros::WallTime::now();
+      if (now < o.nextRetry) {
+        allKnown = false;
+        continue;
+      }
+      try {
+        const auto tf = tfBuffer_.lookupTransform(config_.frameId, o.config.frameId, ros::Time(0));
+        scene_.setPose(i, toIsometry(tf.transform) * o.config.offset);
+        scene_.setActive(i, true);
+        o.poseKnown = true;
+        ROS_INFO("scene_detector: '%s' placed in static frame '%s'", o.config.name.c_str(), o.config.frameId.c_str());
+      } catch (const tf2::TransformException& e) {
+        o.nextRetry = now + ros::WallDuration(staticRetry_);
+        allKnown = false;
+        ROS_WARN_THROTTLE(2.0, "scene_detector: '%s' skipped: static frame '%s' unknown: %s", o.config.name.c_str(),
+                          o.config.frameId.c_str(), e.what());
+      }
+      continue;
+    }
+    // A moving frame: one lookup per pose, at the pose's stamp (the latest when the stamp is newer).
+    try {
+      geometry_msgs::TransformStamped tf;
+      try {
+        tf = tfBuffer_.lookupTransform(config_.frameId, o.config.frameId, stamp);
+      } catch (const tf2::ExtrapolationException&) {
+        tf = tfBuffer_.lookupTransform(config_.frameId, o.config.frameId, ros::Time(0));
+      }
+      scene_.setPose(i, toIsometry(tf.transform) * o.config.offset);
+      scene_.setActive(i, true);
+      o.poseKnown = true;
+    } catch (const std::exception& e) {  // tf2 errors, or a non-rigid transform
+      scene_.setActive(i, false);
+      o.poseKnown = false;
+      allKnown = false;
+      ROS_WARN_THROTTLE(2.0, "scene_detector: '%s' skipped: moving frame '%s': %s", o.config.name.c_str(),
+                        o.config.frameId.c_str(), e.what());
+    }
+  }
+  return allKnown;
+}
+
+void SceneHapticDetector::onPose(const geometry_msgs::PoseStampedConstPtr& msg) {
+  received_.fetch_add(1, std::memory_order_relaxed);
+  if (!isFinite(msg->pose)) {
+    droppedNonFinite_.fetch_add(1, std::memory_order_relaxed);
+    ROS_WARN_THROTTLE(1.0, "scene_detector: dropped a pose with a NaN or Inf component (%lu so far)",
+                      static_cast<unsigned long>(droppedNonFinite_.load()));
+    return;
+  }
+  Vec3 p(msg->pose.position.x, msg->pose.position.y, msg->pose.position.z);
+  const std::string& poseFrame = msg->header.frame_id;
+  const bool transformed = !poseFrame.empty() && poseFrame != config_.frameId;
+  Eigen::Isometry3d sceneFromPose = Eigen::Isometry3d::Identity();
+  if (transformed) {
+    try {
+      geometry_msgs::TransformStamped tf;
+      try {
+        tf = tfBuffer_.lookupTransform(config_.frameId, poseFrame, msg->header.stamp);
+      } catch (const tf2::ExtrapolationException&) {
+        tf = tfBuffer_.lookupTransform(config_.frameId, poseFrame, ros::Time(0));
+      }
+      sceneFromPose = toIsometry(tf.transform);
+    } catch (const tf2::TransformException& e) {
+      droppedFrame_.fetch_add(1, std::memory_order_relaxed);
+      ROS_WARN_THROTTLE(1.0, "scene_detector: dropped a pose in frame '%s': %s (%lu so far)", poseFrame.c_str(),
+                        e.what(), static_cast<unsigned long>(droppedFrame_.load()));
+      return;
+    }
+    p = sceneFromPose * p;
+  }
+
+  updatePoses(msg->header.stamp);
+  swapInReadyLevels();
+
+  SceneQueryResult out;
+  const auto start = std::chrono::steady_clock::now();
+  scene_.query(p, radius_, mode_, contacts_.data(), contacts_.size(), out, caches_.data());
+  const auto elapsed = std::chrono::steady_clock::now() - start;
+
+  auto array = boost::make_shared<ContactArray>();
+  array->header.stamp = msg->header.stamp;
+  array->header.frame_id = config_.frameId;
+  array->pointer = toPoint(p);
+  array->pointer_radius = radius_;
+  array->in_contact = out.contact;
+  array->contacts.resize(out.contacts);
+  array->objects.resize(out.contacts);
+  array->object_indices.resize(out.contacts);
+  for (std::uint32_t k = 0; k < out.contacts; ++k) {
+    const SceneContact& c = contacts_[k];
+    Contact& m = array->contacts[k];
+    m.header = array->header;
+    toMsg(c.local, p, radius_, m);
+    m.point = toPoint(c.point);  // scene frame
+    m.normal = toVector3(c.normal);
+    const auto& level = scene_.detector(c.object);
+    m.clustering_distance = level ? level->spheres()->distance : std::numeric_limits<double>::quiet_NaN();
+    m.level_spheres = level ? static_cast<std::uint32_t>(level->spheres()->size()) : 0;
+    array->objects[k] = objects_[c.object].config.name;
+    array->object_indices[k] = c.object;
+  }
+  array->penetration = toVector3(out.penetration);
+  array->max_depth = out.maxDepth;
+  array->deepest = out.deepest;
+  Vec3 force = stiffness_ * out.penetration;
+  if (maxForce_ > 0.0 && force.norm() > maxForce_) force *= maxForce_ / force.norm();
+  if (!force.allFinite()) force.setZero();
+  array->force = toVector3(force);
+  array->objects_queried = out.objectsQueried;
+  array->objects_rejected = out.objectsRejected;
+  array->objects_without_pose = out.objectsInactive;
+  array->objects_brute_force = out.bruteForce;
+  array->detection_time.fromNSec(std::chrono::duration_cast<std::chrono::nanoseconds>(elapsed).count());
+
+  // The force in the pose's frame, where the device renders it.
+  auto wrench = boost::make_shared<geometry_msgs::WrenchStamped>();
+  wrench->header.stamp = msg->header.stamp;
+  wrench->header.frame_id = transformed ? poseFrame : config_.frameId;
+  toMsg(Vec3(sceneFromPose.linear().transpose() * force), wrench->wrench);
+
+  contactsPub_.publish(array);
+  forcePub_.publish(wrench);
+  published_.fetch_add(1, std::memory_order_relaxed);
+
+  if (markerPub_.getNumSubscribers() == 0) return;  // nobody looks: keep nothing for the display
+  std::lock_guard<std::mutex> lock(lastMutex_);
+  ++last_.seq;
+  last_.pointer = p;
+  last_.radius = radius_;
+  last_.contacts.assign(contacts_.begin(), contacts_.begin() + out.contacts);
+  last_.nearObjects.clear();
+  last_.poses.resize(scene_.size());
+  for (std::uint32_t i = 0; i < scene_.size(); ++i) {
+    last_.poses[i] = scene_.pose(i);
+    const double reach = scene_.boundRadius(i) + radius_;
+    if (scene_.active(i) && (scene_.boundCentre(i) - p).squaredNorm() <= reach * reach) last_.nearObjects.push_back(i);
+  }
+}
+
+// ------------------------------------------------------------------------------------------------
+// Display (its own thread): only while subscribed, only what changed.
+
+void SceneHapticDetector::onDisplayTimer(const ros::SteadyTimerEvent&) {
+  if (markerPub_.getNumSubscribers() == 0) return;
+  publishMarkers();
+}
+
+void SceneHapticDetector::publishMarkers() {
+  auto array = boost::make_shared<visualization_msgs::MarkerArray>();
+  const bool all = staticDirty_.exchange(false);
+  const bool levelsChanged = levelsDirty_.exchange(false);
+  std::vector<std::shared_ptr<const ClodDetector>> levels;
+  {
+    std::lock_guard<std::mutex> lock(readyMutex_);
+    levels = ready_;
+  }
+  for (std::size_t i = 0; i < objects_.size(); ++i) {
+    const ObjectState& o = objects_[i];
+    if (!o.drawn) continue;
+    std_msgs::Header header;
+    header.frame_id = o.config.frameId;  // RViz follows the frame, moving or not: no republish on motion
+    if (all) {
+      // The mesh by reference (RViz loads the file): a few bytes whatever the triangle count.
+      visualization_msgs::Marker m;
+      m.header = header;
+      m.ns = "scene_mesh";
+      m.id = static_cast<int>(i);
+      m.type = visualization_msgs::Marker::MESH_RESOURCE;
+      m.action = visualization_msgs::Marker::ADD;
+      m.mesh_resource = o.config.mesh.rfind("package://", 0) == 0 ? o.config.mesh : "file://" + o.meshPath;
+      const Eigen::Quaterniond q(o.config.offset.linear());
+      m.pose.position = toPoint(o.config.offset.translation());
+      m.pose.orientation.w = q.w();
+      m.pose.orientation.x = q.x();
+      m.pose.orientation.y = q.y();
+      m.pose.orientation.z = q.z();
+      m.scale.x = m.scale.y = m.scale.z = o.config.scale;
+      m.color = makeColor(0.75f, 0.75f, 0.78f, 1.0f);
+      m.frame_locked = true;
+      array->markers.push_back(std::move(m));
+    }
+    if ((all || levelsChanged) && (all || levels[i] != shownLevels_[i])) {
+      const std::string ns = "spheres/" + o.config.name;
+      static const ClodSphereSet empty;
+      const std::size_t first = array->markers.size();
+      appendSphereMarkers(levels[i] ? *levels[i]->spheres() : empty, nullptr, ns.c_str(), header,
+                          makeColor(0.2f, 0.45f, 1.0f, 0.18f), shownSpheres_[i], *array);
+      applyOffset(o.config.offset, first, *array);
+      for (std::size_t k = first; k < array->markers.size(); ++k) array->markers[k].frame_locked = true;
+      shownSpheres_[i] = levels[i] ? levels[i]->spheres()->size() : 0;
+      shownLevels_[i] = levels[i];
+    }
+  }
+
+  LastQuery last;
+  {
+    std::lock_guard<std::mutex> lock(lastMutex_);
+    if (last_.seq != shownSeq_) last = last_;
+  }
+  if (last.seq != 0 && last.seq != shownSeq_) {
+    shownSeq_ = last.seq;
+    std_msgs::Header sceneHeader;
+    sceneHeader.frame_id = config_.frameId;
+    const bool touching = !last.contacts.empty();
+    array->markers.push_back(pointerMarker(last.pointer, last.radius, sceneHeader,
+                                           touching ? makeColor(1.0f, 0.2f, 0.2f, 0.9f)
+                                                    : makeColor(0.1f, 0.9f, 0.2f, 0.9f)));
+    for (std::uint32_t i = 0; i < objects_.size(); ++i) {
+      const ObjectState& o = objects_[i];
+      if (!o.drawn) continue;
+      // Hit spheres: only objects near the pointer are asked; the others get deletes once.
+      const bool near = std::find(last.nearObjects.begin(), last.nearObjects.end(), i) != last.nearObjects.end();
+      hitBuffer_.clear();
+      if (near && levels[i]) levels[i]->hitSpheres(last.poses[i].inverse(Eigen::Isometry) * last.pointer, last.radius,
+                                                   hitBuffer_);
+      if (!hitBuffer_.empty() || shownHit_[i] > 0) {
+        std_msgs::Header header;
+        header.frame_id = o.config.frameId;
+        const std::string ns = "hit_spheres/" + o.config.name;
+        const std::size_t first = array->markers.size();
+        appendSphereMarkers(*levels[i]->spheres(), &hitBuffer_, ns.c_str(), header,
+                            makeColor(1.0f, 0.55f, 0.0f, 0.55f), shownHit_[i], *array);
+        applyOffset(o.config.offset, first, *array);
+        shownHit_[i] = hitBuffer_.size();
+      }
+      // Contact point and normal per object, in the scene frame; deleted once when the contact ends.
+      const SceneContact* contact = nullptr;
+      for (const SceneContact& c : last.contacts)
+        if (c.object == i) contact = &c;
+      if (contact || shownContact_[i]) {
+        ContactResult shown;
+        if (contact) {
+          shown = contact->local;
+          shown.point = contact->point;
+          shown.normal = contact->normal;
+        }
+        const std::size_t first = array->markers.size();
+        appendContactMarkers(shown, std::max(8.0 * last.radius, 0.01), sceneHeader, *array);
+        for (std::size_t k = first; k < array->markers.size(); ++k) array->markers[k].id = static_cast<int>(i);
+        shownContact_[i] = contact != nullptr;
+      }
+    }
+  }
+  if (!array->markers.empty()) markerPub_.publish(array);
+}
+
+}  // namespace clod_haptics
