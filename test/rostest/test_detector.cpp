@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <tf2_ros/static_transform_broadcaster.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include <atomic>
 #include <cmath>
@@ -321,6 +322,99 @@ TEST(Detector, ReconfigureDuringAStreamChangesTheLevelAndAnswersEveryPose) {
   EXPECT_GT(sent.size(), 300u);
   EXPECT_TRUE(levelsSeen.count(spheres0)) << "no pose answered by the first level";
   EXPECT_TRUE(levelsSeen.count(spheres1)) << "no pose answered by the new level";
+}
+
+/** The markers as RViz would hold them: ADD replaces (ns, id), DELETE removes it. */
+class MarkerScene {
+ public:
+  explicit MarkerScene(const std::string& topic) {
+    sub_ = ros::NodeHandle().subscribe(topic, 100, &MarkerScene::onArray, this);
+  }
+  std::map<std::pair<std::string, int>, visualization_msgs::Marker> markers() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return markers_;
+  }
+  std::size_t count(const std::string& ns) {
+    std::size_t n = 0;
+    for (const auto& m : markers()) n += m.first.first == ns ? 1 : 0;
+    return n;
+  }
+  std::size_t arrays() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return arrays_;
+  }
+
+ private:
+  void onArray(const visualization_msgs::MarkerArrayConstPtr& array) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++arrays_;
+    for (const auto& m : array->markers) {
+      if (m.action == visualization_msgs::Marker::DELETE) {
+        markers_.erase({m.ns, m.id});
+      } else {
+        markers_[{m.ns, m.id}] = m;
+      }
+    }
+  }
+  ros::Subscriber sub_;
+  std::mutex mutex_;
+  std::map<std::pair<std::string, int>, visualization_msgs::Marker> markers_;
+  std::size_t arrays_ = 0;
+};
+
+std::pair<std::string, int> key(const std::string& ns) { return {ns, 0}; }
+
+TEST(Detector, MarkersShowTheMeshTheLevelTheHitSpheresAndTheContact) {
+  DetectorClient& dc = client();
+  ASSERT_TRUE(dc.waitReady());
+  MarkerScene scene(dc.ns() + "/markers");
+  // A touching probe, held for a while as a stylus would be.
+  Vec3 touching = Vec3::Zero();
+  for (const Vec3& p : dc.probes(50, 0, 31)) {
+    if (bruteForceQuery(dc.mesh(), p, dc.radius()).contact) {
+      touching = p;
+      break;
+    }
+  }
+  const ContactResult ref = bruteForceQuery(dc.mesh(), touching, dc.radius());
+  ASSERT_TRUE(ref.contact);
+  auto hold = [&](const Vec3& p, double seconds) {
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    Contact c;
+    geometry_msgs::WrenchStamped f;
+    while (ros::WallTime::now() < end) {
+      ASSERT_TRUE(dc.waitAnswer(dc.publish(dc.meshToPose() * p), c, f));
+      ros::WallDuration(0.01).sleep();
+    }
+  };
+  hold(touching, 1.5);
+  const std::size_t arrays = scene.arrays();
+  EXPECT_GT(arrays, 10u) << "markers should flow at about 30 Hz while subscribed";
+  EXPECT_LT(arrays, 100u) << "markers must come at display rate, not once per pose";
+
+  auto markers = scene.markers();
+  ASSERT_TRUE(markers.count(key("mesh")));
+  EXPECT_EQ(markers[key("mesh")].points.size(), 3 * dc.mesh().size());
+  EXPECT_EQ(scene.count("spheres"), dc.status().level_spheres);
+  EXPECT_GE(scene.count("hit_spheres"), 1u);
+  ASSERT_TRUE(markers.count(key("contact_point")));
+  ASSERT_TRUE(markers.count(key("contact_normal")));
+  ASSERT_TRUE(markers.count(key("pointer")));
+  const auto& point = markers[key("contact_point")].pose.position;
+  EXPECT_LT((Vec3(point.x, point.y, point.z) - ref.point).norm(), 1e-7);
+  const auto& pointer = markers[key("pointer")].pose.position;
+  EXPECT_LT((Vec3(pointer.x, pointer.y, pointer.z) - touching).norm(), 1e-9);
+  EXPECT_NEAR(markers[key("pointer")].scale.x, 2.0 * dc.radius(), 1e-12);
+
+  // Moving away clears the contact markers and the highlighted spheres.
+  Vec3 away = dc.mesh().bounds().max() + Vec3::Constant(10.0 * dc.radius());
+  hold(away, 0.6);
+  markers = scene.markers();
+  EXPECT_FALSE(markers.count(key("contact_point")));
+  EXPECT_FALSE(markers.count(key("contact_normal")));
+  EXPECT_EQ(scene.count("hit_spheres"), 0u);
+  ASSERT_TRUE(markers.count(key("pointer")));
+  EXPECT_NEAR(markers[key("pointer")].pose.position.x, away.x(), 1e-9);
 }
 
 }  // namespace
