@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <thread>
 
@@ -171,10 +172,19 @@ void BagReplay::run() {
   } while (params_.loop && ros::ok());
 
   const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
-  ROS_INFO("bag_replay: published %llu poses in %.2f s (%.0f Hz achieved, %.0f Hz intended), %llu pass(es)",
-           static_cast<unsigned long long>(published_), elapsed, elapsed > 0 ? published_ / elapsed : 0.0,
-           (params_.rate > 0 ? params_.rate : motion_.trajectory.meanRate()) * params_.rateScale,
-           static_cast<unsigned long long>(passes));
+  char summary[256];
+  std::snprintf(summary, sizeof(summary),
+                "bag_replay: published %llu poses in %.2f s (%.0f Hz achieved, %.0f Hz intended), %llu pass(es)%s",
+                static_cast<unsigned long long>(published_), elapsed, elapsed > 0 ? published_ / elapsed : 0.0,
+                (params_.rate > 0 ? params_.rate : motion_.trajectory.meanRate()) * params_.rateScale,
+                static_cast<unsigned long long>(passes), ros::ok() ? "" : ", interrupted");
+  // After shutdown (Ctrl-C) rosconsole prints nothing: the summary goes to stdout then.
+  if (ros::ok()) {
+    ROS_INFO("%s", summary);
+  } else {
+    std::printf("%s\n", summary);
+    std::fflush(stdout);
+  }
   std_msgs::UInt64 done;
   done.data = published_;
   donePub_.publish(done);

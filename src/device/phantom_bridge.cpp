@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include <geometry_msgs/PoseStamped.h>
@@ -133,11 +134,20 @@ void PhantomBridge::stop() {
     device_->stop();
     const double elapsed = steadyNow() - startWall_;
     const ForceSafetyCounters& c = safety_.counters();
-    ROS_INFO("phantom_bridge: %llu ticks in %.1f s (%.0f Hz); forces clamped %llu, non-finite %llu, stale %llu, "
-             "rate-limited %llu",
-             static_cast<unsigned long long>(ticks_.load()), elapsed, elapsed > 0 ? ticks_ / elapsed : 0.0,
-             static_cast<unsigned long long>(c.clamped), static_cast<unsigned long long>(c.nonFinite),
-             static_cast<unsigned long long>(c.stale), static_cast<unsigned long long>(c.rateLimited));
+    char summary[256];
+    std::snprintf(summary, sizeof(summary),
+                  "phantom_bridge: %llu ticks in %.1f s (%.0f Hz); forces clamped %llu, non-finite %llu, stale %llu, "
+                  "rate-limited %llu",
+                  static_cast<unsigned long long>(ticks_.load()), elapsed, elapsed > 0 ? ticks_ / elapsed : 0.0,
+                  static_cast<unsigned long long>(c.clamped), static_cast<unsigned long long>(c.nonFinite),
+                  static_cast<unsigned long long>(c.stale), static_cast<unsigned long long>(c.rateLimited));
+    // After shutdown (Ctrl-C) rosconsole prints nothing: the summary goes to stdout then.
+    if (ros::ok()) {
+      ROS_INFO("%s", summary);
+    } else {
+      std::printf("%s\n", summary);
+      std::fflush(stdout);
+    }
   }
 }
 
