@@ -139,6 +139,11 @@ def closest_on_triangle(p, a, b, c):
 
 class Surface:
     def __init__(self, verts, tris):
+        # Inside-out files (negative signed volume) are flipped, as the core's loader does, so
+        # normals point out and "press in" means into the solid.
+        volume = sum(dot(verts[a], cross(verts[b], verts[c])) for a, b, c in tris) / 6.0
+        if volume < 0:
+            tris = [(a, c, b) for a, b, c in tris]
         self.verts, self.tris = verts, tris
         self.normals = [unit(cross(sub(verts[b], verts[a]), sub(verts[c], verts[a]))) for a, b, c in tris]
         self.centroids = [mul(add(add(verts[a], verts[b]), verts[c]), 1.0 / 3) for a, b, c in tris]
