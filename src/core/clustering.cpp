@@ -209,4 +209,39 @@ std::uint32_t SingleLinkClustering::cluster(const std::vector<Vec3>& points, dou
   return count;
 }
 
+std::uint32_t CubeClustering::cluster(const std::vector<Vec3>& points, double d,
+                                      std::vector<std::uint32_t>& labels) const {
+  if (!std::isfinite(d) || d < 0.0)
+    throw InvalidParameter("clustering distance must be finite and >= 0, got " + std::to_string(d));
+  const std::size_t n = points.size();
+  labels.assign(n, 0);
+  if (n == 0) return 0;
+  if (d == 0.0) {
+    for (std::size_t i = 0; i < n; ++i) labels[i] = static_cast<std::uint32_t>(i);
+    return static_cast<std::uint32_t>(n);
+  }
+  Eigen::AlignedBox3d box;
+  for (const Vec3& p : points) box.extend(p);
+  const double extent =
+      std::max({box.sizes().maxCoeff(), box.min().cwiseAbs().maxCoeff(), box.max().cwiseAbs().maxCoeff()});
+  const double cell = std::max(d, extent * 1e-12);
+  CellTable table(n);
+  std::uint32_t count = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 q = (points[i] - box.min()) / cell;
+    const CellKey key{static_cast<std::int64_t>(std::floor(q.x())), static_cast<std::int64_t>(std::floor(q.y())),
+                      static_cast<std::int64_t>(std::floor(q.z()))};
+    std::size_t& run = table.run(table.insert(key));
+    if (run == 0) run = ++count;  // 1-based: 0 marks a new cube
+    labels[i] = static_cast<std::uint32_t>(run - 1);
+  }
+  return count;
+}
+
+std::shared_ptr<const Clustering> makeClustering(const std::string& name) {
+  if (name == "single-link") return std::make_shared<SingleLinkClustering>();
+  if (name == "cube") return std::make_shared<CubeClustering>();
+  return nullptr;
+}
+
 }  // namespace clod_haptics

@@ -318,6 +318,19 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
   if (cache != nullptr) cache->lastTriangle = out.triangle;
 }
 
+std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcept {
+  if (!p.allFinite() || !std::isfinite(r) || r < 0.0) return 0;
+  if (!grid_.empty() && r <= grid_.radius()) {
+    const CellGrid::Cell* cell = grid_.find(grid_.keyOf(p));
+    return cell ? cell->spheres : 0;
+  }
+  std::uint32_t hits = 0;
+  const double reach = r;
+  const bool tree = fastLevel_ != FastLevel::Flat && !triangleRoot_.empty();
+  forEachHitSphere(p.x(), p.y(), p.z(), reach, tree, [&](std::uint32_t) { ++hits; });
+  return hits;
+}
+
 void ClodDetector::hitSpheres(const Vec3& p, double r, std::vector<std::uint32_t>& out) const {
   out.clear();
   if (!p.allFinite() || !std::isfinite(r) || r < 0.0) return;

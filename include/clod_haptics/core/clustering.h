@@ -1,6 +1,8 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <string>
 #include <vector>
 
 #include "clod_haptics/core/mesh.h"
@@ -32,5 +34,19 @@ class SingleLinkClustering : public Clustering {
  public:
   std::uint32_t cluster(const std::vector<Vec3>& points, double d, std::vector<std::uint32_t>& labels) const override;
 };
+
+/**
+ * \brief The clustering cube read literally: space is cut into cubes of side d (aligned with the
+ * points' bounding box) and the centres in one cube form a cluster. No chaining, so no cluster
+ * grows beyond a cube; d = 0 keeps every centre apart. O(n). An alternative to single-link for
+ * comparison (tighter spheres, more of them); the default stays single-link, as the paper states.
+ */
+class CubeClustering : public Clustering {
+ public:
+  std::uint32_t cluster(const std::vector<Vec3>& points, double d, std::vector<std::uint32_t>& labels) const override;
+};
+
+/** \brief A clustering strategy by name: "single-link" or "cube"; null for anything else. */
+std::shared_ptr<const Clustering> makeClustering(const std::string& name);
 
 }  // namespace clod_haptics

@@ -60,6 +60,14 @@ class ClodDetector {
   void query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
              QueryCache* cache = nullptr) const noexcept;
 
+  /**
+   * \brief The fast level alone, as the configured descent runs it for the precise modes: how many
+   * spheres it reports for the pointer (grid: the spheres cached for p's cell; hierarchy: spheres
+   * whose bound meets the pointer; flat: every sphere the pointer overlaps). For timing the two
+   * levels apart; allocates nothing.
+   */
+  std::uint32_t fastLevelHits(const Vec3& p, double r) const noexcept;
+
   /** \brief Indices of the spheres the pointer overlaps (for display; allocates into out). */
   void hitSpheres(const Vec3& p, double r, std::vector<std::uint32_t>& out) const;
 
