@@ -125,21 +125,29 @@ SphereGrid::SphereGrid(const SphereList& spheres) : s_(spheres) {
   }
 }
 
-bool SphereGrid::contains(const Vec3& p) const {
-  if (s_.centres.empty()) return false;
+bool SphereGrid::contains(const Vec3& p) const { return visit(p, true) > 0; }
+
+std::size_t SphereGrid::count(const Vec3& p) const { return visit(p, false); }
+
+std::size_t SphereGrid::visit(const Vec3& p, bool firstOnly) const {
+  if (s_.centres.empty()) return 0;
   int c[3];
   for (int k = 0; k < 3; ++k) {
     const double f = std::floor((p[k] - box_.min()[k]) * inv_);
-    if (f < -1 || f > n_[k]) return false;
+    if (f < -1 || f > n_[k]) return 0;
     c[k] = std::clamp(static_cast<int>(f), 0, n_[k] - 1);  // boundary points land in the edge cell
   }
   const std::size_t cell = (static_cast<std::size_t>(c[2]) * n_[1] + c[1]) * n_[0] + c[0];
+  std::size_t n = 0;
   for (std::uint32_t i = start_[cell]; i < start_[cell + 1]; ++i) {
     const std::uint32_t s = items_[i];
     const double r = s_.radii[s];
-    if ((p - s_.centres[s]).squaredNorm() <= r * r * (1.0 + 1e-12)) return true;
+    if ((p - s_.centres[s]).squaredNorm() <= r * r * (1.0 + 1e-12)) {
+      ++n;
+      if (firstOnly) return n;
+    }
   }
-  return false;
+  return n;
 }
 
 bool InsideTest::inside(const Vec3& p) const {
@@ -147,10 +155,15 @@ bool InsideTest::inside(const Vec3& p) const {
                                Vec3(0.7071, -0.1233, -0.6963).normalized()};
   int votes = 0;
   for (const Vec3& d : dirs) {
-    int hits = 0;
+    // Winding number along the ray: +1 leaving through a face (normal along the ray), -1 entering.
+    // Non-zero is inside (union of overlapping parts; a part wound inside out still counts).
+    int winding = 0;
     double tMax = 1e30;  // never lowered: every crossing counts
-    bvh_.forEachRayHit(p, d, tMax, [&](std::uint32_t, double) { ++hits; });
-    votes += hits & 1;
+    bvh_.forEachRayHit(p, d, tMax, [&](std::uint32_t t, double) {
+      const double c = mesh_.normals[t].dot(d);
+      winding += c > 0 ? 1 : c < 0 ? -1 : 0;
+    });
+    votes += winding != 0;
   }
   return votes >= 2;
 }

@@ -34,10 +34,13 @@ class SphereGrid {
  public:
   explicit SphereGrid(const SphereList& spheres);
   bool contains(const Vec3& p) const;
+  /** \brief Number of spheres containing p. */
+  std::size_t count(const Vec3& p) const;
   /** \brief Bounds of the union of the spheres. */
   Eigen::AlignedBox3d bounds() const { return box_; }
 
  private:
+  std::size_t visit(const Vec3& p, bool firstOnly) const;
   const SphereList& s_;
   Eigen::AlignedBox3d box_;
   double inv_ = 1.0;
@@ -45,13 +48,17 @@ class SphereGrid {
   std::vector<std::uint32_t> start_, items_;
 };
 
-/** \brief Inside test for a closed mesh: parity of ray crossings, majority over three fixed directions. */
+/**
+ * \brief Inside test for a closed (or nearly closed) mesh: the winding number along a ray (signed
+ * crossings), non-zero inside, majority over three fixed directions.
+ */
 class InsideTest {
  public:
-  explicit InsideTest(const TriangleMesh& mesh) : bvh_(mesh) {}
+  explicit InsideTest(const TriangleMesh& mesh) : mesh_(mesh), bvh_(mesh) {}
   bool inside(const Vec3& p) const;
 
  private:
+  const TriangleMesh& mesh_;
   clod_haptics::TriangleBvh bvh_;
 };
 
