@@ -18,6 +18,7 @@
 #include <geometry_msgs/WrenchStamped.h>
 #include <ros/ros.h>
 #include <tf2_ros/buffer.h>
+#include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 
@@ -75,6 +76,13 @@ class SceneDetectorTest : public ::testing::Test {
     forceSub_ = nh_.subscribe(forceTopic, 100, &SceneDetectorTest::onForce, this);
     spinner_ = std::make_unique<ros::AsyncSpinner>(2);
     spinner_->start();
+    // The static table frame (the scene's torus_small sits on it), latched on /tf_static.
+    geometry_msgs::TransformStamped table;
+    table.header.stamp = ros::Time::now();
+    table.header.frame_id = "world";
+    table.child_frame_id = "table";
+    table.transform = toTransform(makePose(Vec3(0.0, 0.4, 0.0), 0.5));
+    staticBroadcaster_.sendTransform(table);
     setToolPose(makePose(Vec3(-0.3, 0.0, 0.1), 0.0));
     broadcaster_ = std::thread([this] { broadcastTool(); });
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
@@ -164,7 +172,8 @@ class SceneDetectorTest : public ::testing::Test {
 
   /** Checks an answer against brute force on every object at the given world poses. */
   void expectMatches(const ContactArray& answer, const Vec3& p,
-                     const std::vector<Eigen::Isometry3d, Eigen::aligned_allocator<Eigen::Isometry3d>>& poses) {
+                     const std::vector<Eigen::Isometry3d, Eigen::aligned_allocator<Eigen::Isometry3d>>& poses,
+                     const Eigen::Matrix3d& sceneFromPoseFrame = Eigen::Matrix3d::Identity()) {
     ASSERT_EQ(answer.header.frame_id, config_.frameId);
     ASSERT_EQ(answer.contacts.size(), answer.objects.size());
     ASSERT_EQ(answer.contacts.size(), answer.object_indices.size());
@@ -197,9 +206,12 @@ class SceneDetectorTest : public ::testing::Test {
     EXPECT_NEAR(answer.force.x, kStiffness * penetration.x(), 1e-6);
     EXPECT_NEAR(answer.force.y, kStiffness * penetration.y(), 1e-6);
     EXPECT_NEAR(answer.force.z, kStiffness * penetration.z(), 1e-6);
+    // The wrench is the same force expressed in the pose's frame, where the device renders it.
     ASSERT_TRUE(lastForce_);
-    EXPECT_NEAR(lastForce_->wrench.force.x, answer.force.x, 1e-9);  // pose in the scene frame: same force
-    EXPECT_NEAR(lastForce_->wrench.force.z, answer.force.z, 1e-9);
+    const Vec3 inPoseFrame = sceneFromPoseFrame.transpose() * Vec3(answer.force.x, answer.force.y, answer.force.z);
+    EXPECT_NEAR(lastForce_->wrench.force.x, inPoseFrame.x(), 1e-9);
+    EXPECT_NEAR(lastForce_->wrench.force.y, inPoseFrame.y(), 1e-9);
+    EXPECT_NEAR(lastForce_->wrench.force.z, inPoseFrame.z(), 1e-9);
     EXPECT_EQ(answer.objects_queried + answer.objects_rejected + answer.objects_without_pose, meshes_.size());
   }
 
@@ -232,6 +244,7 @@ class SceneDetectorTest : public ::testing::Test {
   ros::Subscriber contactsSub_, forceSub_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
   std::thread broadcaster_;
+  tf2_ros::StaticTransformBroadcaster staticBroadcaster_;
   std::atomic<bool> stop_{false};
   std::mutex mutex_;
   std::condition_variable cv_;
@@ -300,7 +313,7 @@ TEST_F(SceneDetectorTest, PoseInAnotherFrameAndBadPoses) {
   for (const Vec3& world : probesNear(2, 30, 5)) {
     const auto answer = ask(table.inverse() * world, "table");
     ASSERT_TRUE(answer);
-    expectMatches(*answer, world, poses);
+    expectMatches(*answer, world, poses, table.linear());
     if (HasFatalFailure()) return;
     touched += answer->in_contact;
   }
