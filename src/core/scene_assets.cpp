@@ -45,7 +45,7 @@ std::uint64_t SceneAssets::hashLocked(const std::shared_ptr<const TriangleMesh>&
 }
 
 std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
-                                                       LevelInfo* info) {
+                                                       FastLevel fastLevel, LevelInfo* info) {
   if (!mesh) throw InvalidParameter("SceneAssets::level: no mesh");
   requireNonNegative(distance, "clustering distance");
   if (distance == 0.0) distance = 0.0;
@@ -54,39 +54,43 @@ std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<con
   out = LevelInfo();
   std::uint64_t bits;
   std::memcpy(&bits, &distance, sizeof(bits));
+  const LevelKey key{mesh.get(), bits};
 
   std::lock_guard<std::mutex> lock(mutex_);
-  // Keyed by the mesh object (which keeps it alive through the detector), so the detector handed out
+  // Keyed by the mesh object (which the detector and set keep alive), so the detector handed out
   // always refers to the very mesh the caller passed: SceneDetector checks that.
-  auto& slot = levels_[{mesh.get(), bits}];
-  if (slot) {
+  auto found = levels_.find({key, fastLevel});
+  if (found != levels_.end()) {
     out.shared = true;
     out.cache.source = CacheSource::Hit;
-    return slot;
+    return found->second;
   }
-  const std::uint64_t h = hashLocked(mesh);
-  auto build = [&]() -> ClodSphereSet {
-    auto& builder = builders_[h];
-    std::shared_ptr<const ClodBuilder> use = builder;
-    if (!use) {
-      use = std::make_shared<const ClodBuilder>(mesh);
-      ++placements_;
-      if (keepBuilders_) builder = use;
-    }
-    if (!keepBuilders_) builders_.erase(h);
-    return use->build(distance);
-  };
   std::shared_ptr<const ClodSphereSet> set;
-  try {
+  auto knownSet = sets_.find(key);
+  if (knownSet != sets_.end() && knownSet->second.first.lock() == mesh) {
+    set = knownSet->second.second;
+    out.shared = true;
+    out.cache.source = CacheSource::Hit;
+  } else {
+    const std::uint64_t h = hashLocked(mesh);
+    auto build = [&]() -> ClodSphereSet {
+      std::shared_ptr<const ClodBuilder> use = builders_[h];
+      if (!use) {
+        use = std::make_shared<const ClodBuilder>(mesh);
+        ++placements_;
+        if (keepBuilders_) builders_[h] = use;
+      }
+      if (!keepBuilders_) builders_.erase(h);
+      return use->build(distance);
+    };
     set = cache_->getOrBuild(*mesh, h, distance, build, &out.cache);
-    const auto start = std::chrono::steady_clock::now();
-    slot = std::make_shared<const ClodDetector>(mesh, set, fastLevel_, gridRadius_);
-    out.detectorMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  } catch (...) {
-    levels_.erase({mesh.get(), bits});
-    throw;
+    sets_[key] = {mesh, set};
   }
-  return slot;
+  const auto start = std::chrono::steady_clock::now();
+  auto detector = std::make_shared<const ClodDetector>(mesh, set, fastLevel, gridRadius_);
+  out.detectorMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  levels_[{key, fastLevel}] = detector;
+  return detector;
 }
 
 }  // namespace clod_haptics

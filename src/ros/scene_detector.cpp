@@ -68,6 +68,8 @@ SceneHapticDetector::SceneHapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh
   contacts_.resize(n);
   caches_.resize(n);
   ready_.resize(n);
+  wanted_ = std::make_unique<std::atomic<bool>[]>(n);
+  for (std::size_t i = 0; i < n; ++i) wanted_[i] = false;
   shownLevels_.resize(n);
   shownSpheres_.assign(n, 0);
   shownHit_.assign(n, 0);
@@ -117,6 +119,8 @@ void SceneHapticDetector::readParameters() {
   pnh_.param("max_force", maxForce_, 0.0);
   pnh_.param("marker_rate", markerRate_, 30.0);
   pnh_.param("static_retry", staticRetry_, 0.5);
+  pnh_.param("prefetch_margin", prefetchMargin_, 0.05);
+  pnh_.param("quick_start", quickStart_, true);
   pnh_.param("pose_queue_size", poseQueueSize_, 100);
   std::string mode, fast;
   pnh_.param<std::string>("detection_mode", mode, "exact");
@@ -132,6 +136,9 @@ void SceneHapticDetector::readParameters() {
   if (!std::isfinite(maxForce_) || maxForce_ < 0.0) throw InvalidParameter("~max_force must be finite and >= 0");
   if (!(markerRate_ > 0.0) || markerRate_ > 200.0) throw InvalidParameter("~marker_rate must be in (0, 200] Hz");
   if (!(staticRetry_ > 0.0)) throw InvalidParameter("~static_retry must be positive");
+  if (!std::isfinite(prefetchMargin_) || prefetchMargin_ < 0.0) {
+    throw InvalidParameter("~prefetch_margin must be finite and >= 0");
+  }
   if (poseQueueSize_ < 1) throw InvalidParameter("~pose_queue_size must be at least 1");
 }
 
@@ -139,28 +146,58 @@ void SceneHapticDetector::readParameters() {
 // Levels: prepared by the worker (disk cache or build), swapped in by the pose thread.
 
 void SceneHapticDetector::levelWorker() {
-  for (std::size_t i = 0; i < objects_.size() && !stop_; ++i) {
-    const auto& object = objects_[i];
-    try {
-      SceneAssets::LevelInfo info;
-      auto level = assets_->level(scene_.mesh(static_cast<std::uint32_t>(i)), object.config.distance, &info);
-      {
-        std::lock_guard<std::mutex> lock(readyMutex_);
-        ready_[i] = level;
+  // Stage 1 (quick start): hierarchy detectors, cheap to construct once the spheres are read or built.
+  // Stage 2: the configured fast level (grid: O(1) queries) replaces them, object by object.
+  std::vector<FastLevel> stages;
+  if (quickStart_ && fastLevel_ != FastLevel::Hierarchy) stages.push_back(FastLevel::Hierarchy);
+  stages.push_back(fastLevel_);
+  const std::size_t n = objects_.size();
+  const auto start = std::chrono::steady_clock::now();
+  for (std::size_t stage = 0; stage < stages.size() && !stop_; ++stage) {
+    const bool last = stage + 1 == stages.size();
+    std::vector<char> done(n, 0);
+    for (std::size_t count = 0; count < n && !stop_; ++count) {
+      // The object the stylus asks for (near the pointer, final level missing) first, else list order.
+      std::size_t i = n;
+      for (std::size_t k = 0; k < n && i == n; ++k)
+        if (!done[k] && wanted_[k].load()) i = k;
+      for (std::size_t k = 0; k < n && i == n; ++k)
+        if (!done[k]) i = k;
+      done[i] = 1;
+      const auto& object = objects_[i];
+      try {
+        SceneAssets::LevelInfo info;
+        auto level = assets_->level(scene_.mesh(static_cast<std::uint32_t>(i)), object.config.distance, stages[stage],
+                                    &info);
+        {
+          std::lock_guard<std::mutex> lock(readyMutex_);
+          ready_[i] = level;
+        }
+        readyPending_ = true;
+        levelsDirty_ = true;
+        if (last) wanted_[i] = false;
+        if (!info.cache.problem.empty()) {
+          ROS_WARN("scene_detector: '%s': %s", object.config.name.c_str(), info.cache.problem.c_str());
+        }
+        ROS_INFO("scene_detector: '%s' level d = %g (%s) ready: %zu spheres, %s%s (%.0f ms + %.0f ms detector)",
+                 object.config.name.c_str(), object.config.distance,
+                 stages[stage] == FastLevel::Grid ? "grid" : stages[stage] == FastLevel::Hierarchy ? "hierarchy" : "flat",
+                 level->spheres()->size(), info.shared ? "shared" : toString(info.cache.source),
+                 info.shared ? "" : (" " + info.cache.path).c_str(), info.cache.ms, info.detectorMs);
+      } catch (const std::exception& e) {
+        ROS_ERROR("scene_detector: '%s': cannot prepare level d = %g: %s; answering it by brute force",
+                  object.config.name.c_str(), object.config.distance, e.what());
       }
-      readyPending_ = true;
-      levelsReady_.fetch_add(1);
-      levelsDirty_ = true;
-      if (!info.cache.problem.empty()) {
-        ROS_WARN("scene_detector: '%s': %s", object.config.name.c_str(), info.cache.problem.c_str());
-      }
-      ROS_INFO("scene_detector: '%s' level d = %g ready: %zu spheres, %s%s (%.0f ms + %.0f ms detector)",
-               object.config.name.c_str(), object.config.distance, level->spheres()->size(),
-               info.shared ? "shared with another object" : toString(info.cache.source),
-               info.shared ? "" : (" " + info.cache.path).c_str(), info.cache.ms, info.detectorMs);
-    } catch (const std::exception& e) {
-      ROS_ERROR("scene_detector: '%s': cannot prepare level d = %g: %s; answering it by brute force",
-                object.config.name.c_str(), object.config.distance, e.what());
+    }
+    if (!stop_) {
+      if (last) levelsReady_ = static_cast<std::uint32_t>(n);
+      ROS_INFO("scene_detector: %s levels of %zu objects ready %.0f ms after start-up (cache %s: %lu hits, %lu built, "
+               "%lu rejected)",
+               stages[stage] == FastLevel::Grid ? "grid" : "hierarchy", n,
+               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
+               assets_->cache()->directory().c_str(), static_cast<unsigned long>(assets_->cache()->hits()),
+               static_cast<unsigned long>(assets_->cache()->misses()),
+               static_cast<unsigned long>(assets_->cache()->rejected()));
     }
   }
 }
@@ -256,6 +293,15 @@ void SceneHapticDetector::onPose(const geometry_msgs::PoseStampedConstPtr& msg) 
 
   updatePoses(msg->header.stamp);
   swapInReadyLevels();
+  if (levelsReady_.load(std::memory_order_relaxed) < scene_.size()) {
+    // Objects the pointer approaches and whose final level is missing are prepared first.
+    for (std::uint32_t i = 0; i < scene_.size(); ++i) {
+      const auto& level = scene_.detector(i);
+      if (level && level->fastLevel() == fastLevel_) continue;
+      const double reach = scene_.boundRadius(i) + radius_ + prefetchMargin_;
+      if ((scene_.boundCentre(i) - p).squaredNorm() <= reach * reach) wanted_[i] = true;
+    }
+  }
 
   SceneQueryResult out;
   const auto start = std::chrono::steady_clock::now();

@@ -308,6 +308,14 @@ TEST(SceneAssets, SharesMeshesAndLevelsAndRestartsFromTheCache) {
     assets.level(a, 0.01, &info);  // another level of the same mesh: the builder is reused
     assets.level(c, 0.003, &info);
     EXPECT_EQ(assets.placements(), 2u);  // one ray-cast placement per distinct mesh
+    // Another fast level of a known level: the same sphere set, no disk access, a new detector.
+    const auto hitsBefore = assets.cache()->hits() + assets.cache()->misses();
+    auto hierarchy = assets.level(a, 0.003, FastLevel::Hierarchy, &info);
+    EXPECT_TRUE(info.shared);
+    EXPECT_EQ(hierarchy->fastLevel(), FastLevel::Hierarchy);
+    EXPECT_EQ(first->fastLevel(), FastLevel::Grid);
+    EXPECT_EQ(hierarchy->spheres().get(), first->spheres().get());
+    EXPECT_EQ(assets.cache()->hits() + assets.cache()->misses(), hitsBefore);
     EXPECT_THROW(assets.level(a, -1.0), InvalidParameter);
     EXPECT_THROW(assets.mesh("/nonexistent/mesh.obj"), MeshLoadError);
   }

@@ -50,7 +50,20 @@ class SceneAssets {
    * \throws InvalidParameter for a bad d; ClodError from the build.
    */
   std::shared_ptr<const ClodDetector> level(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
-                                            LevelInfo* info = nullptr);
+                                            LevelInfo* info = nullptr) {
+    return level(mesh, distance, fastLevel_, info);
+  }
+
+  /**
+   * \brief The same with another fast level. The sphere set is read or built once and shared by the
+   * detectors of every fast level: a caller can answer quickly with a Hierarchy detector (cheap to
+   * construct) and swap in the Grid one (O(1) queries, slower to construct) when it is ready.
+   */
+  std::shared_ptr<const ClodDetector> level(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
+                                            FastLevel fastLevel, LevelInfo* info = nullptr);
+
+  /** \brief The fast level of level(mesh, d). */
+  FastLevel fastLevel() const { return fastLevel_; }
 
   /** \brief Content hash of a mesh (computed once per mesh). */
   std::uint64_t hash(const std::shared_ptr<const TriangleMesh>& mesh);
@@ -72,7 +85,9 @@ class SceneAssets {
   // key: the mesh's address, checked against the weak pointer (an address can be reused after a free)
   std::map<const TriangleMesh*, std::pair<std::weak_ptr<const TriangleMesh>, std::uint64_t>> hashes_;
   std::map<std::uint64_t, std::shared_ptr<const ClodBuilder>> builders_;     // key: content hash
-  std::map<std::pair<const TriangleMesh*, std::uint64_t>, std::shared_ptr<const ClodDetector>> levels_;  // (mesh, d bits)
+  using LevelKey = std::pair<const TriangleMesh*, std::uint64_t>;  // (mesh, bits of d)
+  std::map<LevelKey, std::pair<std::weak_ptr<const TriangleMesh>, std::shared_ptr<const ClodSphereSet>>> sets_;
+  std::map<std::pair<LevelKey, FastLevel>, std::shared_ptr<const ClodDetector>> levels_;
   std::uint64_t placements_ = 0;
 };
 

@@ -27,14 +27,17 @@ namespace clod_haptics {
  *
  * Parameters: ~scene (a scene file loaded with rosparam, see SceneConfig), ~pose_topic,
  * ~pointer_radius, ~detection_mode, ~stiffness, ~max_force, ~cache_dir, ~fast_level, ~marker_rate,
- * ~marker_objects (names to draw; empty: all), ~pose_queue_size, ~static_retry (s).
+ * ~marker_objects (names to draw; empty: all), ~pose_queue_size, ~static_retry (s), ~quick_start,
+ * ~prefetch_margin (m).
  *
  * Threads: poses arrive on the caller's node handle (the haptic path: one tf2 lookup for the pose's
  * frame when it differs from the scene frame, one per moving object, then one allocation-free
  * SceneDetector query). Static frames other than the scene frame are looked up once and cached. A
  * worker thread prepares each object's level (disk cache, or a build) and hands it over; the pose
  * thread swaps it in, so no pose waits for a build (objects without a level are answered by brute
- * force). Markers run on a private display queue, only while subscribed and only when changed.
+ * force). Objects the pointer comes near (~prefetch_margin) are prepared first. With ~quick_start
+ * and the grid fast level, every object first gets a hierarchy detector (cheap to construct from
+ * the cached spheres), then the grid one replaces it in the background. Markers run on a private display queue, only while subscribed and only when changed.
  */
 class SceneHapticDetector {
  public:
@@ -94,6 +97,8 @@ class SceneHapticDetector {
   FastLevel fastLevel_ = FastLevel::Grid;
   double markerRate_ = 30.0;
   double staticRetry_ = 0.5;
+  double prefetchMargin_ = 0.05;
+  bool quickStart_ = true;
   int poseQueueSize_ = 100;
 
   // Core.
@@ -110,6 +115,9 @@ class SceneHapticDetector {
   std::vector<std::shared_ptr<const ClodDetector>> ready_;  // guarded by readyMutex_
   std::atomic<bool> readyPending_{false};
   std::atomic<std::uint32_t> levelsReady_{0};
+  // Per object, set by the pose thread: the pointer is near and the final level is not in place yet,
+  // so the worker prepares this object next ("asked for" by the stylus).
+  std::unique_ptr<std::atomic<bool>[]> wanted_;
 
   // Counters.
   std::atomic<std::uint64_t> received_{0}, published_{0}, droppedNonFinite_{0}, droppedFrame_{0};
