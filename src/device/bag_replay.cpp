@@ -1,15 +1,15 @@
 #include "clod_haptics/device/bag_replay.h"
 
+#include <geometry_msgs/PoseStamped.h>
+#include <sensor_msgs/JointState.h>
+#include <sensor_msgs/Joy.h>
+#include <std_msgs/UInt64.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
 #include <thread>
-
-#include <geometry_msgs/PoseStamped.h>
-#include <sensor_msgs/JointState.h>
-#include <sensor_msgs/Joy.h>
-#include <std_msgs/UInt64.h>
 
 namespace clod_haptics {
 namespace device {
@@ -88,15 +88,16 @@ BagReplay::BagReplay(ros::NodeHandle nh, ros::NodeHandle pnh)
   if (params_.frameId.empty()) params_.frameId = motion_.frameId.empty() ? "world" : motion_.frameId;
 
   const Eigen::AlignedBox3d box = trajectory_.bounds();
-  ROS_INFO("bag_replay: '%s' topic %s (%s): %zu messages, %.2f s, %.0f Hz recorded, %zu dropped; "
-           "%zu poses at %.0f Hz x%.2f%s; positions x%.4g to metres, then scale %.4g, offset (%.4f, %.4f, %.4f); "
-           "workspace [%.4f %.4f %.4f] .. [%.4f %.4f %.4f] m in frame '%s'",
-           params_.bag.c_str(), motion_.topic.c_str(), motion_.type.c_str(), motion_.messages,
-           motion_.trajectory.duration(), motion_.trajectory.meanRate(), motion_.trajectory.dropped(),
-           trajectory_.size(), params_.rate > 0 ? params_.rate : motion_.trajectory.meanRate(), params_.rateScale,
-           params_.loop ? ", looping" : "", motion_.positionScale, params_.transform.scale,
-           params_.transform.offset.x(), params_.transform.offset.y(), params_.transform.offset.z(), box.min().x(),
-           box.min().y(), box.min().z(), box.max().x(), box.max().y(), box.max().z(), params_.frameId.c_str());
+  ROS_INFO(
+      "bag_replay: '%s' topic %s (%s): %zu messages, %.2f s, %.0f Hz recorded, %zu dropped; "
+      "%zu poses at %.0f Hz x%.2f%s; positions x%.4g to metres, then scale %.4g, offset (%.4f, %.4f, %.4f); "
+      "workspace [%.4f %.4f %.4f] .. [%.4f %.4f %.4f] m in frame '%s'",
+      params_.bag.c_str(), motion_.topic.c_str(), motion_.type.c_str(), motion_.messages, motion_.trajectory.duration(),
+      motion_.trajectory.meanRate(), motion_.trajectory.dropped(), trajectory_.size(),
+      params_.rate > 0 ? params_.rate : motion_.trajectory.meanRate(), params_.rateScale,
+      params_.loop ? ", looping" : "", motion_.positionScale, params_.transform.scale, params_.transform.offset.x(),
+      params_.transform.offset.y(), params_.transform.offset.z(), box.min().x(), box.min().y(), box.min().z(),
+      box.max().x(), box.max().y(), box.max().z(), params_.frameId.c_str());
 
   posePub_ = nh_.advertise<geometry_msgs::PoseStamped>(params_.name + "/pose", 1000);
   buttonPub_ = nh_.advertise<sensor_msgs::Joy>(params_.name + "/button", 1, true);

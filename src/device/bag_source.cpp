@@ -1,16 +1,16 @@
 #include "clod_haptics/device/bag_source.h"
 
-#include <algorithm>
-#include <cmath>
-#include <fstream>
-#include <limits>
-#include <map>
-
 #include <geometry_msgs/PoseStamped.h>
 #include <rosbag/bag.h>
 #include <rosbag/exceptions.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/JointState.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <map>
 
 namespace clod_haptics {
 namespace device {
@@ -121,8 +121,8 @@ BagMotion readStylusBag(const std::string& path, const BagReadOptions& options) 
         if (!msg) continue;
         if (motion.frameId.empty()) motion.frameId = msg->header.frame_id;
         s.time = stampOf(msg->header, m.getTime());
-        s.position = motion.positionScale *
-                     Eigen::Vector3d(msg->pose.position.x, msg->pose.position.y, msg->pose.position.z);
+        s.position =
+            motion.positionScale * Eigen::Vector3d(msg->pose.position.x, msg->pose.position.y, msg->pose.position.z);
         const auto& q = msg->pose.orientation;
         s.orientation = Eigen::Quaterniond(q.w, q.x, q.y, q.z);
         if (s.orientation.norm() < 1e-9) s.orientation = Eigen::Quaterniond::Identity();  // unset orientation

@@ -1,10 +1,10 @@
 // Compiled only when CMake finds the OpenHaptics HD headers and library (CLOD_WITH_OPENHAPTICS).
 #include "clod_haptics/device/openhaptics_device.h"
 
+#include <HD/hd.h>
+
 #include <chrono>
 #include <thread>
-
-#include <HD/hd.h>
 
 namespace clod_haptics {
 namespace device {
@@ -101,8 +101,8 @@ bool OpenHapticsDevice::servo() {
       state_.joints[i] = joints[i];
       state_.joints[3 + i] = gimbal[i];
     }
-    state_.buttons = ((buttons & HD_DEVICE_BUTTON_1) ? kGreyButton : 0u) |
-                     ((buttons & HD_DEVICE_BUTTON_2) ? kWhiteButton : 0u);
+    state_.buttons =
+        ((buttons & HD_DEVICE_BUTTON_1) ? kGreyButton : 0u) | ((buttons & HD_DEVICE_BUTTON_2) ? kWhiteButton : 0u);
     haveState_ = true;
     force = force_;
   }

@@ -1,13 +1,13 @@
 #include "clod_haptics/device/phantom_bridge.h"
 
+#include <geometry_msgs/PoseStamped.h>
+#include <sensor_msgs/JointState.h>
+#include <sensor_msgs/Joy.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
-
-#include <geometry_msgs/PoseStamped.h>
-#include <sensor_msgs/JointState.h>
-#include <sensor_msgs/Joy.h>
 
 #include "clod_haptics/device/simulated_device.h"
 #ifdef CLOD_WITH_OPENHAPTICS
@@ -110,10 +110,11 @@ PhantomBridge::PhantomBridge(ros::NodeHandle nh, ros::NodeHandle pnh, std::uniqu
   renderedPub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("rendered_force", 100);
   forceSub_ = nh_.subscribe(params_.name + "/force_feedback", 10, &PhantomBridge::onForce, this,
                             ros::TransportHints().tcpNoDelay());
-  ROS_INFO("phantom_bridge: device %s, %s/pose at %.0f Hz in frame '%s'; force clamp %.2f N, rate limit %.0f N/s, "
-           "timeout %.0f ms",
-           device_->name().c_str(), params_.name.c_str(), params_.rate, params_.frameId.c_str(),
-           params_.safety.maxForce, params_.safety.maxForceRate, 1000.0 * params_.safety.staleTimeout);
+  ROS_INFO(
+      "phantom_bridge: device %s, %s/pose at %.0f Hz in frame '%s'; force clamp %.2f N, rate limit %.0f N/s, "
+      "timeout %.0f ms",
+      device_->name().c_str(), params_.name.c_str(), params_.rate, params_.frameId.c_str(), params_.safety.maxForce,
+      params_.safety.maxForceRate, 1000.0 * params_.safety.staleTimeout);
 }
 
 PhantomBridge::~PhantomBridge() { stop(); }

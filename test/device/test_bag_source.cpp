@@ -1,16 +1,15 @@
 // readStylusBag: PoseStamped bags, the Geomagic Touch JointState (x, y, z millimetres) format,
 // and every way a bag can be unusable (missing, not a bag, truncated, unindexed, wrong topic).
 // Bags are written with the rosbag C++ API; no roscore needed.
+#include <geometry_msgs/PoseStamped.h>
 #include <gtest/gtest.h>
+#include <rosbag/bag.h>
+#include <sensor_msgs/JointState.h>
+#include <std_msgs/String.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-
-#include <geometry_msgs/PoseStamped.h>
-#include <rosbag/bag.h>
-#include <sensor_msgs/JointState.h>
-#include <std_msgs/String.h>
 
 #include "clod_haptics/device/bag_source.h"
 #include "clod_haptics/test_config.h"
@@ -157,7 +156,8 @@ TEST(BagSource, MissingFileNotABagTruncatedAndUnindexedBagsAreErrors) {
   const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   for (double fraction : {0.001, 0.1, 0.5, 0.9, 0.99}) {
     const std::string cut = tempPath("truncated.bag");
-    std::ofstream(cut, std::ios::binary | std::ios::trunc).write(bytes.data(), static_cast<std::streamsize>(size * fraction));
+    std::ofstream(cut, std::ios::binary | std::ios::trunc)
+        .write(bytes.data(), static_cast<std::streamsize>(size * fraction));
     const std::string error = errorOf(cut);
     EXPECT_NE(error.find("bag '" + cut + "'"), std::string::npos) << "fraction " << fraction << ": '" << error << "'";
   }

@@ -78,7 +78,8 @@ TEST(ForceSafety, NonFiniteCommandGivesZeroAtOnce) {
   double t = 0.0;
   for (int i = 0; i < 100; ++i, t += 0.001) safety.update(command(Vector3d(0.3, 0.0, 0.0), t), t);
   ASSERT_GT(safety.lastOutput().norm(), 0.25);
-  for (const Vector3d& bad : {Vector3d(nan, 0, 0), Vector3d(0, inf, 0), Vector3d(0, 0, -inf), Vector3d(nan, nan, nan)}) {
+  for (const Vector3d& bad :
+       {Vector3d(nan, 0, 0), Vector3d(0, inf, 0), Vector3d(0, 0, -inf), Vector3d(nan, nan, nan)}) {
     ForceStatus status;
     const Vector3d out = safety.update(command(bad, t), t, &status);
     EXPECT_EQ(status, ForceStatus::NonFinite);

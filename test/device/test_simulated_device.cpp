@@ -106,7 +106,8 @@ TEST(SimulatedDevice, CircleScriptStaysOnTheCircle) {
 }
 
 TEST(SimulatedDevice, LoadsCsvScriptsAndNamesBadLines) {
-  const auto good = writeTemp("good.csv", "# t, x, y, z, buttons\n0, 0, 0, 0\n0.5, 0.1, 0, 0, 2\n\n1.0 0.1 0.1 0 # ok\n");
+  const auto good =
+      writeTemp("good.csv", "# t, x, y, z, buttons\n0, 0, 0, 0\n0.5, 0.1, 0, 0, 2\n\n1.0 0.1 0.1 0 # ok\n");
   const auto script = SimulatedDevice::loadCsvScript(good);
   ASSERT_EQ(script.size(), 3u);
   EXPECT_EQ(script[1].buttons, 2u);

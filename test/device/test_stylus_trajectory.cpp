@@ -25,9 +25,9 @@ StylusSample sample(double t, const Vector3d& p) {
 
 TEST(StylusTrajectory, SortsDropsInvalidAndDuplicateSamplesAndStartsAtZero) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  StylusSamples in = {sample(10.2, Vector3d(2, 0, 0)), sample(10.0, Vector3d(0, 0, 0)),
+  StylusSamples in = {sample(10.2, Vector3d(2, 0, 0)),   sample(10.0, Vector3d(0, 0, 0)),
                       sample(10.1, Vector3d(nan, 0, 0)), sample(10.1, Vector3d(1, 0, 0)),
-                      sample(10.1, Vector3d(5, 5, 5)), sample(nan, Vector3d(0, 0, 0))};
+                      sample(10.1, Vector3d(5, 5, 5)),   sample(nan, Vector3d(0, 0, 0))};
   StylusTrajectory traj(in);
   ASSERT_EQ(traj.size(), 3u);
   EXPECT_EQ(traj.dropped(), 3u);
@@ -104,8 +104,7 @@ TEST(StylusTrajectory, TransformAppliesScaleRotationThenOffset) {
   tf.offset = Vector3d(1, 2, 3);
   EXPECT_NEAR((tf.apply(Vector3d(1, 0, 0)) - Vector3d(1, 4, 3)).norm(), 0.0, 1e-12);
   // roll 90 degrees: y -> z
-  EXPECT_NEAR((WorkspaceTransform::fromRpy(M_PI / 2, 0, 0) * Vector3d::UnitY() - Vector3d::UnitZ()).norm(), 0.0,
-              1e-12);
+  EXPECT_NEAR((WorkspaceTransform::fromRpy(M_PI / 2, 0, 0) * Vector3d::UnitY() - Vector3d::UnitZ()).norm(), 0.0, 1e-12);
   const StylusTrajectory traj(StylusSamples{sample(0, Vector3d(1, 0, 0)), sample(1, Vector3d(0, 1, 0))});
   const StylusTrajectory moved = traj.transformed(tf);
   EXPECT_NEAR((moved.samples()[1].position - Vector3d(-1, 2, 3)).norm(), 0.0, 1e-12);

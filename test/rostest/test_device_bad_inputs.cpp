@@ -89,14 +89,19 @@ TEST(DeviceBadInputs, BagReplayWithAGoodBagPlaysOnceAndExitsZero) {
 
 TEST(DeviceBadInputs, BagReplayLoopsUntilInterrupted) {
   // 7.5 s of motion at 20x is 0.375 s a pass: in 3 s it loops several times, then Ctrl-C ends it.
-  const Outcome o = run(kReplay + " __name:=br_loop _bag:=" + kGoodBag +
-                            " _loop:=true _rate_scale:=20.0 _start_delay:=0.0 _exit_delay:=0.0 _wait_for_subscribers:=0",
-                        "-s INT 3");
+  const Outcome o =
+      run(kReplay + " __name:=br_loop _bag:=" + kGoodBag +
+              " _loop:=true _rate_scale:=20.0 _start_delay:=0.0 _exit_delay:=0.0 _wait_for_subscribers:=0",
+          "-s INT 3");
   const auto at = o.output.find("bag_replay: published ");
   ASSERT_NE(at, std::string::npos) << o.output;
   unsigned long long poses = 0, passes = 0;
-  ASSERT_EQ(std::sscanf(o.output.c_str() + at, "bag_replay: published %llu poses in %*f s (%*f Hz achieved, %*f Hz "
-                                               "intended), %llu pass(es)", &poses, &passes), 2) << o.output;
+  ASSERT_EQ(std::sscanf(o.output.c_str() + at,
+                        "bag_replay: published %llu poses in %*f s (%*f Hz achieved, %*f Hz "
+                        "intended), %llu pass(es)",
+                        &poses, &passes),
+            2)
+      << o.output;
   EXPECT_GE(passes, 3u) << o.output;
   EXPECT_GE(poses, 2 * 7501u) << o.output;
   EXPECT_NE(o.output.find("interrupted"), std::string::npos) << o.output;

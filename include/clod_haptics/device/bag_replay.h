@@ -1,8 +1,8 @@
 #pragma once
 
-#include <string>
-
 #include <ros/ros.h>
+
+#include <string>
 
 #include "clod_haptics/device/bag_source.h"
 #include "clod_haptics/device/stylus_trajectory.h"
@@ -12,21 +12,21 @@ namespace device {
 
 /** \brief Everything bag_replay reads from the parameter server. */
 struct BagReplayParams {
-  std::string bag;                 ///< ~bag, required
-  BagReadOptions read;             ///< ~topic, ~joint_topic, ~position_scale
-  std::string name = "phantom";    ///< ~omni_name: topic prefix, as the bridge
-  std::string frameId;             ///< ~frame_id; empty: the bag's PoseStamped frame, else "world"
-  double rate = 1000.0;            ///< ~rate: output rate, Hz (upsampled by interpolation); 0 = as recorded
-  double rateScale = 1.0;          ///< ~rate_scale: 2 plays twice as fast
-  bool loop = false;               ///< ~loop
-  WorkspaceTransform transform;    ///< ~offset, ~scale, ~rotation_rpy
-  bool fit = false;                ///< set when ~fit_size > 0: fit the workspace into a box
+  std::string bag;               ///< ~bag, required
+  BagReadOptions read;           ///< ~topic, ~joint_topic, ~position_scale
+  std::string name = "phantom";  ///< ~omni_name: topic prefix, as the bridge
+  std::string frameId;           ///< ~frame_id; empty: the bag's PoseStamped frame, else "world"
+  double rate = 1000.0;          ///< ~rate: output rate, Hz (upsampled by interpolation); 0 = as recorded
+  double rateScale = 1.0;        ///< ~rate_scale: 2 plays twice as fast
+  bool loop = false;             ///< ~loop
+  WorkspaceTransform transform;  ///< ~offset, ~scale, ~rotation_rpy
+  bool fit = false;              ///< set when ~fit_size > 0: fit the workspace into a box
   Eigen::Vector3d fitCenter = Eigen::Vector3d::Zero();  ///< ~fit_center
-  double fitSize = 0.0;            ///< ~fit_size, metres
-  double startDelay = 0.5;         ///< ~start_delay, seconds before the first pose
-  int waitForSubscribers = 0;      ///< ~wait_for_subscribers on <name>/pose before starting
-  double waitTimeout = 10.0;       ///< ~wait_timeout, seconds
-  double exitDelay = 1.0;          ///< ~exit_delay after the last pose (the latched ~done reaches listeners)
+  double fitSize = 0.0;                                 ///< ~fit_size, metres
+  double startDelay = 0.5;                              ///< ~start_delay, seconds before the first pose
+  int waitForSubscribers = 0;                           ///< ~wait_for_subscribers on <name>/pose before starting
+  double waitTimeout = 10.0;                            ///< ~wait_timeout, seconds
+  double exitDelay = 1.0;  ///< ~exit_delay after the last pose (the latched ~done reaches listeners)
 };
 
 /**

@@ -34,14 +34,14 @@ struct BagReadOptions {
 
 /** \brief What a bag holds for replay. */
 struct BagMotion {
-  StylusTrajectory trajectory;     ///< positions in metres, times from the first sample
+  StylusTrajectory trajectory;      ///< positions in metres, times from the first sample
   std::vector<JointSample> joints;  ///< joint angles on the same time axis (may be empty)
-  std::string topic;               ///< the stylus topic read
-  std::string type;                ///< its message type
-  std::string frameId;             ///< frame of the first PoseStamped (empty for JointState)
-  std::string jointTopic;          ///< the joint topic read, empty if none
-  double positionScale = 1.0;      ///< the factor applied to the positions
-  std::size_t messages = 0;        ///< stylus messages read
+  std::string topic;                ///< the stylus topic read
+  std::string type;                 ///< its message type
+  std::string frameId;              ///< frame of the first PoseStamped (empty for JointState)
+  std::string jointTopic;           ///< the joint topic read, empty if none
+  double positionScale = 1.0;       ///< the factor applied to the positions
+  std::size_t messages = 0;         ///< stylus messages read
 };
 
 /**

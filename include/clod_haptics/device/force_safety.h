@@ -1,8 +1,7 @@
 #pragma once
 
-#include <cstdint>
-
 #include <Eigen/Core>
+#include <cstdint>
 
 namespace clod_haptics {
 namespace device {
@@ -36,12 +35,12 @@ struct ForceCommand {
 
 /** \brief What update() did to the command, worst case first. */
 enum class ForceStatus : std::uint8_t {
-  Ok,         ///< rendered as commanded
-  NoCommand,  ///< nothing received yet: zero force, not an error
-  NonFinite,  ///< NaN or Inf component: zero force and a warning
-  Stale,      ///< command older than staleTimeout: zero force and a warning
-  Clamped,    ///< magnitude above maxForce: scaled down to maxForce
-  RateLimited ///< within limits but moved towards the target by at most maxForceRate * dt
+  Ok,          ///< rendered as commanded
+  NoCommand,   ///< nothing received yet: zero force, not an error
+  NonFinite,   ///< NaN or Inf component: zero force and a warning
+  Stale,       ///< command older than staleTimeout: zero force and a warning
+  Clamped,     ///< magnitude above maxForce: scaled down to maxForce
+  RateLimited  ///< within limits but moved towards the target by at most maxForceRate * dt
 };
 
 /** \brief Lower-case name of a status, for logs. */

@@ -1,12 +1,11 @@
 #pragma once
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 namespace clod_haptics {
 namespace device {
@@ -30,11 +29,11 @@ enum DeviceButton : std::uint32_t {
  */
 struct DeviceState {
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
-  double time = 0.0;                                           ///< device clock, seconds
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();          ///< stylus tip, metres
+  double time = 0.0;                                                ///< device clock, seconds
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();               ///< stylus tip, metres
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< stylus orientation
-  std::array<double, 6> joints{};                              ///< joint angles, radians
-  std::uint32_t buttons = 0;                                   ///< DeviceButton bits
+  std::array<double, 6> joints{};                                   ///< joint angles, radians
+  std::uint32_t buttons = 0;                                        ///< DeviceButton bits
 };
 
 /**

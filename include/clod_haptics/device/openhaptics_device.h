@@ -34,14 +34,14 @@ class OpenHapticsDevice : public HapticDevice {
 
  private:
   std::string deviceName_;
-  unsigned int handle_ = 0;      // HHD
-  unsigned long callback_ = 0;   // HDSchedulerHandle
+  unsigned int handle_ = 0;     // HHD
+  unsigned long callback_ = 0;  // HDSchedulerHandle
   bool started_ = false;
   std::mutex mutex_;
-  DeviceState state_;             // guarded by mutex_
-  bool haveState_ = false;        // guarded by mutex_
+  DeviceState state_;                                // guarded by mutex_
+  bool haveState_ = false;                           // guarded by mutex_
   Eigen::Vector3d force_ = Eigen::Vector3d::Zero();  // guarded by mutex_, ROS frame
-  std::string lastError_;         // guarded by mutex_
+  std::string lastError_;                            // guarded by mutex_
 };
 
 }  // namespace device

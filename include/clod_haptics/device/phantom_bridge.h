@@ -1,13 +1,13 @@
 #pragma once
 
+#include <geometry_msgs/WrenchStamped.h>
+#include <ros/ros.h>
+
 #include <atomic>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
-
-#include <geometry_msgs/WrenchStamped.h>
-#include <ros/ros.h>
 
 #include "clod_haptics/device/force_safety.h"
 #include "clod_haptics/device/haptic_device.h"
@@ -21,10 +21,10 @@ constexpr double kTouchPeakForce = 3.3;
 
 /** \brief Everything the bridge reads from the parameter server. */
 struct PhantomBridgeParams {
-  std::string name = "phantom";  ///< topic prefix, as omni_common's ~omni_name
+  std::string name = "phantom";   ///< topic prefix, as omni_common's ~omni_name
   std::string frameId = "world";  ///< frame of the published pose
-  double rate = 1000.0;          ///< servo and publish rate, Hz
-  ForceSafetyParams safety;      ///< clamp, rate limit, stale timeout
+  double rate = 1000.0;           ///< servo and publish rate, Hz
+  ForceSafetyParams safety;       ///< clamp, rate limit, stale timeout
 };
 
 /**

@@ -1,12 +1,11 @@
 #pragma once
 
-#include <array>
-#include <string>
-#include <vector>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <Eigen/StdVector>
+#include <array>
+#include <string>
+#include <vector>
 
 namespace clod_haptics {
 namespace device {
