@@ -21,6 +21,7 @@
 #include "clod_haptics/Contact.h"
 #include "clod_haptics/DetectorStatus.h"
 #include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/ros/mesh_resource.h"
@@ -145,6 +146,24 @@ class DetectorClient {
     param.name = "clustering_distance";
     param.value = d;
     srv.request.config.doubles.push_back(param);
+    return ros::service::call(ns_ + "/set_parameters", srv);
+  }
+
+  /** Sets doubles and strings of the detector's dynamic_reconfigure in one call. */
+  bool reconfigure(const std::map<std::string, double>& doubles, const std::map<std::string, std::string>& strings) {
+    dynamic_reconfigure::Reconfigure srv;
+    for (const auto& kv : doubles) {
+      dynamic_reconfigure::DoubleParameter param;
+      param.name = kv.first;
+      param.value = kv.second;
+      srv.request.config.doubles.push_back(param);
+    }
+    for (const auto& kv : strings) {
+      dynamic_reconfigure::StrParameter param;
+      param.name = kv.first;
+      param.value = kv.second;
+      srv.request.config.strs.push_back(param);
+    }
     return ros::service::call(ns_ + "/set_parameters", srv);
   }
 
@@ -322,6 +341,48 @@ TEST(Detector, ReconfigureDuringAStreamChangesTheLevelAndAnswersEveryPose) {
   EXPECT_GT(sent.size(), 300u);
   EXPECT_TRUE(levelsSeen.count(spheres0)) << "no pose answered by the first level";
   EXPECT_TRUE(levelsSeen.count(spheres1)) << "no pose answered by the new level";
+}
+
+TEST(Detector, DetectionModeAndPointerRadiusFollowReconfigure) {
+  DetectorClient& dc = client();
+  ASSERT_TRUE(dc.waitReady());
+  // The reference: the core detector on the same level (sphere_builder and a local build agree).
+  const double d = dc.status().clustering_distance;
+  auto mesh = std::make_shared<const TriangleMesh>(dc.mesh());
+  auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(d));
+  const ClodDetector reference(mesh, set, FastLevel::Hierarchy);
+  const double r = 1.5 * dc.radius();
+  const auto points = dc.probes(150, 30, 41);
+  for (const char* name : {"spheres", "paper", "exact"}) {
+    DetectionMode mode;
+    ASSERT_TRUE(parseDetectionMode(name, mode));
+    // The reconfigure callback stores the settings before it answers: every pose sent after it uses them.
+    ASSERT_TRUE(dc.reconfigure({{"pointer_radius", r}}, {{"detection_mode", name}}));
+    std::size_t touching = 0;
+    for (const Vec3& p : points) {
+      Contact c;
+      geometry_msgs::WrenchStamped f;
+      ASSERT_TRUE(dc.waitAnswer(dc.publish(dc.meshToPose() * p), c, f));
+      EXPECT_DOUBLE_EQ(c.pointer_radius, r);
+      EXPECT_DOUBLE_EQ(c.clustering_distance, d);
+      ASSERT_EQ(c.level_spheres, set->size());
+      ContactResult expected;
+      reference.query(p, r, mode, expected);
+      EXPECT_EQ(c.in_contact, expected.contact) << name << " probe " << p.transpose();
+      if (c.in_contact && expected.contact) {
+        EXPECT_NEAR(c.distance, expected.distance, 1e-9) << name;
+        EXPECT_NEAR(c.depth, expected.depth, 1e-9) << name;
+        // The same coordinates give the same triangle; through tf2 they differ in the last bits, and an
+        // edge shared by two triangles may then go to either.
+        if (dc.meshToPose().matrix() == Eigen::Matrix4d::Identity()) {
+          EXPECT_EQ(c.triangle, expected.triangle) << name;
+        }
+        ++touching;
+      }
+    }
+    EXPECT_GT(touching, points.size() / 5) << name;
+  }
+  ASSERT_TRUE(dc.reconfigure({{"pointer_radius", dc.radius()}}, {{"detection_mode", "exact"}}));
 }
 
 /** The markers as RViz would hold them: ADD replaces (ns, id), DELETE removes it. */
