@@ -2,9 +2,10 @@
 // against the mesh with the core's brute-force reference: 1 kHz, free space at the start and end,
 // pressed in by --depth during the slide, sliding about --slide-length along the surface.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
+#include <array>
 #include <cstdio>
-#include <cstdlib>
 #include <string>
 
 #include "clod_haptics/core/brute_force.h"
@@ -18,10 +19,21 @@ namespace {
 
 const std::string kScript = CLOD_PACKAGE_DATA_DIR "/../scripts/generate_stylus_bag.py";
 
-int runGenerator(const std::string& args) {
-  const std::string command = "python3 " + kScript + " " + args + " > /dev/null 2>&1";
-  const int status = std::system(command.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+struct Outcome {
+  int exitCode = -1;
+  std::string output;
+};
+
+/** Runs the generator with the Python catkin uses (the one with rosbag), capturing its output. */
+Outcome runGenerator(const std::string& args) {
+  Outcome o;
+  FILE* pipe = popen((std::string(CLOD_PYTHON) + " " + kScript + " " + args + " 2>&1").c_str(), "r");
+  if (!pipe) return o;
+  std::array<char, 512> buffer;
+  while (fgets(buffer.data(), buffer.size(), pipe)) o.output += buffer.data();
+  const int status = pclose(pipe);
+  o.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return o;
 }
 
 struct Case {
@@ -33,7 +45,9 @@ void checkMotion(const Case& c) {
   SCOPED_TRACE(c.mesh);
   const std::string bag = ::testing::TempDir() + "clod_generated.bag";
   const double depth = 0.0015, height = 0.03, slideLength = 0.08;
-  ASSERT_EQ(runGenerator("--mesh " + c.mesh + " --scale " + std::to_string(c.scale) + " --out " + bag), 0);
+  const Outcome o = runGenerator("--mesh " + c.mesh + " --scale " + std::to_string(c.scale) + " --out " + bag);
+  ASSERT_EQ(o.exitCode, 0) << o.output;
+  EXPECT_NE(o.output.find("7501 poses at 1000 Hz"), std::string::npos) << o.output;
   const device::BagMotion motion = device::readStylusBag(bag);
   const auto& samples = motion.trajectory.samples();
   // Phases (defaults): approach 1.5 s, press 0.75 s, slide 4 s, retract 1.25 s, at 1 kHz.
@@ -85,7 +99,13 @@ TEST(GenerateStylusBag, SharedHeadOff) { checkMotion({CLOD_SHARED_MESH_DIR "/hea
 
 TEST(GenerateStylusBag, BadMeshOrArgumentsFail) {
   const std::string bag = ::testing::TempDir() + "clod_generated_bad.bag";
-  EXPECT_EQ(runGenerator("--mesh /nonexistent/mesh.obj --out " + bag), 1);
-  EXPECT_EQ(runGenerator("--mesh " CLOD_TEST_DATA_DIR "/no_triangles.obj --out " + bag), 1);
-  EXPECT_NE(runGenerator("--mesh " CLOD_PACKAGE_DATA_DIR "/meshes/torus.obj --rate -5 --out " + bag), 0);
+  for (const std::string mesh :
+       {std::string("/nonexistent/mesh.obj"), std::string(CLOD_TEST_DATA_DIR "/no_triangles.obj")}) {
+    const Outcome o = runGenerator("--mesh " + mesh + " --out " + bag);
+    EXPECT_EQ(o.exitCode, 1) << o.output;
+    EXPECT_NE(o.output.find("cannot read mesh " + mesh), std::string::npos) << o.output;
+  }
+  const Outcome o = runGenerator("--mesh " CLOD_PACKAGE_DATA_DIR "/meshes/torus.obj --rate -5 --out " + bag);
+  EXPECT_EQ(o.exitCode, 2) << o.output;  // argparse usage error
+  EXPECT_NE(o.output.find("--rate must be positive"), std::string::npos) << o.output;
 }
