@@ -99,7 +99,7 @@ TEST(GenerateStylusBag, SharedHeadOff) { checkMotion({CLOD_SHARED_MESH_DIR "/hea
 
 TEST(GenerateStylusBag, BadMeshOrArgumentsFail) {
   const std::string bag = ::testing::TempDir() + "clod_generated_bad.bag";
-  for (const std::string mesh :
+  for (const std::string& mesh :
        {std::string("/nonexistent/mesh.obj"), std::string(CLOD_TEST_DATA_DIR "/no_triangles.obj")}) {
     const Outcome o = runGenerator("--mesh " + mesh + " --out " + bag);
     EXPECT_EQ(o.exitCode, 1) << o.output;
