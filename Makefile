@@ -103,3 +103,71 @@ screenshot: build deps-screenshot
 
 clean:
 	rm -rf $(BUILD)
+
+# ---------------------------------------------------------------------------------------------
+# Fuzzing and sanitizers (issue 6; owned by the tests helper).
+# `make fuzz` builds the libFuzzer targets in fuzz/ with clang-14 (-fsanitize=fuzzer,address,undefined)
+# against the core sources and runs each for FUZZ_SECONDS (default 60); a crash leaves its input in
+# .build/fuzz/artifacts and fails the target. `make test-sanitize` builds the whole suite with
+# -DCLOD_SANITIZE=ON (ASan + UBSan) in its own workspace .build/ws-sanitize and runs every test.
+APT_FUZZ := clang-14 libclang-rt-14-dev libeigen3-dev libassimp-dev
+FUZZ_DIR := $(BUILD)/fuzz
+FUZZ_SECONDS ?= 60
+FUZZ_CXX := clang++-14
+FUZZ_CXXFLAGS := -std=c++17 -g -O1 -fno-omit-frame-pointer -fno-sanitize-recover=undefined \
+  -I$(ROOT)/include -isystem /usr/include/eigen3
+FUZZ_TARGETS := fuzz_mesh_load fuzz_query
+FUZZ_CORE_OBJS := $(patsubst $(ROOT)/src/core/%.cpp,$(FUZZ_DIR)/obj/%.o,$(wildcard $(ROOT)/src/core/*.cpp))
+SAN_WS := $(BUILD)/ws-sanitize
+SAN_ENV := ASAN_OPTIONS=detect_leaks=1:halt_on_error=1:abort_on_error=0 \
+  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 LSAN_OPTIONS=suppressions=$(ROOT)/fuzz/lsan.supp
+
+.PHONY: deps-fuzz fuzz-build fuzz test-sanitize
+.SECONDARY: $(FUZZ_CORE_OBJS)
+
+deps-fuzz:
+	$(call apt_install,$(APT_FUZZ))
+
+$(FUZZ_DIR)/obj/%.o: $(ROOT)/src/core/%.cpp $(wildcard $(ROOT)/include/clod_haptics/core/*.h)
+	@mkdir -p $(@D)
+	@$(FUZZ_CXX) $(FUZZ_CXXFLAGS) -fsanitize=fuzzer-no-link,address,undefined -c $< -o $@
+
+$(FUZZ_DIR)/%: $(ROOT)/fuzz/%.cpp $(ROOT)/fuzz/fuzz_common.h $(FUZZ_CORE_OBJS)
+	@echo "== building $@"
+	@$(FUZZ_CXX) $(FUZZ_CXXFLAGS) -fsanitize=fuzzer,address,undefined $< $(FUZZ_CORE_OBJS) -lassimp -lpthread -o $@
+
+fuzz-build: deps-fuzz
+	@$(MAKE) --no-print-directory $(addprefix $(FUZZ_DIR)/,$(FUZZ_TARGETS))
+
+# Seeds: the test fixtures behind a selector byte (0 .off, 1 .obj, 2 .stl, 3 .ply; bit 2 normalises),
+# plus fuzz/regressions/<target>/ (inputs that once failed; each also has a gtest).
+fuzz: fuzz-build
+	@mkdir -p $(FUZZ_DIR)/artifacts $(FUZZ_DIR)/corpus/fuzz_query $(FUZZ_DIR)/corpus/fuzz_mesh_load \
+	  $(ROOT)/fuzz/regressions/fuzz_query $(ROOT)/fuzz/regressions/fuzz_mesh_load
+	@s=$(FUZZ_DIR)/corpus/fuzz_mesh_load; d=$(ROOT)/test/data; \
+	  for f in cube.off:04 cube.obj:05 cube_quads.obj:01 cube_ascii.stl:06 cube_binary.stl:02 cube_ascii.ply:07 \
+	           cube_binary.ply:03 cube_with_zero_area.obj:15 cube.dae:04; do \
+	    n=$${f%%:*}; printf "\\x$${f#*:}" > $$s/seed_$$n; cat $$d/$$n >> $$s/seed_$$n; done; \
+	  printf '\x00' > $$s/seed_degtri_sliding.off; cat $(SHARED_DIR)/data/meshes/degtri_sliding.off >> $$s/seed_degtri_sliding.off 2>/dev/null; true
+	@status=0; for t in $(FUZZ_TARGETS); do \
+	  echo "== $$t for $(FUZZ_SECONDS) s (log: $(FUZZ_DIR)/$$t.log)"; \
+	  (cd $(FUZZ_DIR) && LSAN_OPTIONS=suppressions=$(ROOT)/fuzz/lsan.supp ./$$t corpus/$$t $(ROOT)/fuzz/regressions/$$t -max_total_time=$(FUZZ_SECONDS) -timeout=30 -rss_limit_mb=4096 \
+	    -artifact_prefix=$(FUZZ_DIR)/artifacts/$$t- -print_final_stats=1 > $$t.log 2>&1); rc=$$?; \
+	  grep -E '^(stat::number_of_executed_units|stat::peak_rss_mb)|^#[0-9]+ +DONE' $(FUZZ_DIR)/$$t.log | tr '\n' ' '; echo; \
+	  if [ $$rc -ne 0 ]; then status=1; echo "$$t FAILED (exit $$rc):"; grep -E 'ERROR|invariant|runtime error|SUMMARY|Test unit written' $(FUZZ_DIR)/$$t.log | head -10; fi; \
+	done; exit $$status
+
+test-sanitize: deps
+	@mkdir -p $(SAN_WS)/src $(BUILD)/ros_home-sanitize && ln -sfn $(ROOT) $(SAN_WS)/src/clod_haptics
+	@echo "== building the suite with ASan+UBSan in $(SAN_WS) (log: $(BUILD)/sanitize_build.log)"
+	@cd $(SAN_WS) && catkin_make -j$(JOBS) --cmake-args -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCLOD_SANITIZE=ON \
+	  $(CMAKE_EXTRA) --make-args all tests > $(BUILD)/sanitize_build.log 2>&1 || { tail -30 $(BUILD)/sanitize_build.log; exit 1; }
+	@rm -rf $(SAN_WS)/build/test_results
+	@echo "== running every test under the sanitizers (log: $(BUILD)/sanitize_run_tests.log)"
+	@source $(SAN_WS)/devel/setup.bash && cd $(SAN_WS) && export ROS_HOME=$(BUILD)/ros_home-sanitize \
+	  ROS_LOG_DIR=$(BUILD)/ros_home-sanitize/log $(SAN_ENV) && catkin_make -j1 run_tests > $(BUILD)/sanitize_run_tests.log 2>&1; \
+	  grep -E '^\[ +(FAILED|SKIPPED) +\]|FAILURE|runtime error|ERROR: (Address|Leak)Sanitizer|SUMMARY: ' \
+	    $(BUILD)/sanitize_run_tests.log | tail -40 || true
+	@! grep -qE 'runtime error:|ERROR: (Address|Leak|UndefinedBehavior)Sanitizer' $(BUILD)/sanitize_run_tests.log || \
+	  { echo "sanitizer reports found (see $(BUILD)/sanitize_run_tests.log)"; exit 1; }
+	@source $(SAN_WS)/devel/setup.bash && python3 $(ROOT)/scripts/count_test_results.py $(SAN_WS)/build/test_results

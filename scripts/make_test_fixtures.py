@@ -211,6 +211,13 @@ def main():
         f.write("v 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2\nl 2 3\n")
     with open(p("no_faces.off"), "w") as f:
         f.write("OFF\n3 0 0\n0 0 0\n1 0 0\n0 1 0\n")
+    # Face indices beyond the vertex count (found by fuzz/fuzz_mesh_load): assimp passes them through.
+    bad_tris = list(split_t)
+    bad_tris[1] = (3, 536, 5)
+    write_ply_ascii(p("bad_index.ply"), split_v, bad_tris)
+    huge_tris = list(TRIS)
+    huge_tris[10] = (1, 587530243, 1852139296)  # assimp's own post-processing reads out of bounds on this
+    write_ply_binary(p("bad_index_binary.ply"), cube, huge_tris)
     write_off(p("nan_vertex.off"), cube, TRIS, text={5: "nan 2 3"})
     write_off(p("inf_vertex.off"), cube, TRIS, text={2: "1 inf 3"})
     write_obj(p("nan_vertex.obj"), cube, TRIS)

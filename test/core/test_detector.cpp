@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -10,7 +11,7 @@
 #include <limits>
 #include <map>
 #include <new>
-#include <array>
+#include <random>
 #include <vector>
 
 #include "clod_haptics/core/brute_force.h"
@@ -179,9 +180,10 @@ bool sane(const ContactResult& c, const Vec3& p, double r, double tol) {
 
 Counts compareRange(const TriangleMesh& mesh, const ClodDetector& det, const std::vector<Vec3>& probes,
                     const std::vector<ContactResult>& bf, double r, std::size_t begin, std::size_t end,
-                    std::size_t stride, std::vector<std::string>& failures) {
+                    std::size_t stride, bool useCache, std::vector<std::string>& failures) {
   Counts k;
   ContactResult exact, paper, spheres;
+  QueryCache cacheExact, cachePaper, cacheSpheres;  // one stream per mode, in probe (Morton) order
   const double tolAbs = 1e-12 * mesh.diagonal();
   auto fail = [&](const std::string& s) {
     if (failures.size() < 10) failures.push_back(s);
@@ -192,9 +194,9 @@ Counts compareRange(const TriangleMesh& mesh, const ClodDetector& det, const std
     const Vec3& p = probes[i];
     const bool ref = referenceContact(mesh, p, bf[i], r);
     k.contacts += ref;
-    det.query(p, r, DetectionMode::Exact, exact);
-    det.query(p, r, DetectionMode::Paper, paper);
-    det.query(p, r, DetectionMode::Spheres, spheres);
+    det.query(p, r, DetectionMode::Exact, exact, useCache ? &cacheExact : nullptr);
+    det.query(p, r, DetectionMode::Paper, paper, useCache ? &cachePaper : nullptr);
+    det.query(p, r, DetectionMode::Spheres, spheres, useCache ? &cacheSpheres : nullptr);
     const double tol = 1e-9 * std::max(bf[i].distance, r);
     // exact: identical flags, equal distances, a closest point on the named triangle.
     if (exact.contact != ref || (ref && std::abs(exact.distance - bf[i].distance) > tol)) {
@@ -251,6 +253,7 @@ TEST_P(DetectorVsBruteForce, HundredThousandProbes) {
   std::vector<Vec3> probes = nearSurfaceProbes(*mesh, kNearProbes, kMaxRadius, 11);
   const auto uniform = uniformProbes(*mesh, kUniformProbes, kMaxRadius, 12);
   probes.insert(probes.end(), uniform.begin(), uniform.end());
+  sortMorton(probes);  // the order of a coherent stylus stream, for the QueryCache runs
   ASSERT_GE(probes.size(), 100000u);
 
   const std::vector<ContactResult> bf = referenceQueries(*mesh, probes, kMaxRadius);
@@ -264,25 +267,36 @@ TEST_P(DetectorVsBruteForce, HundredThousandProbes) {
     FastLevel fast;
     double r;
     std::size_t stride;  // compare every stride-th probe
+    bool cache;          // pass a QueryCache (temporal coherence)
+    double gridRadius;   // for FastLevel::Grid; 0 = the detector's default
   };
-  // The paper's working point d = 0.02 at two radii and the top of its d range on every probe; d = 0
-  // (every unclustered sphere) and the flat fast level on every 4th probe, to bound the run time.
-  for (const Config& cfg : {Config{0.02, FastLevel::Hierarchy, 0.005, 1}, Config{0.02, FastLevel::Hierarchy, kMaxRadius, 1},
-                            Config{0.08, FastLevel::Hierarchy, kMaxRadius, 1}, Config{0.0, FastLevel::Hierarchy, 0.005, 4},
-                            Config{0.02, FastLevel::Flat, 0.005, 4}}) {
+  // The default Grid fast level at the paper's working point d = 0.02, within its radius (with and
+  // without the stream cache), beyond it (hierarchy fallback) and with a grid built for r = 0.02, on
+  // every probe; the hierarchy at d = 0.02 and 0.08 on every 2nd probe; d = 0 (every unclustered
+  // sphere) and the flat fast level on every 4th probe, to bound the run time.
+  const double gridDefault = 0.0;
+  for (const Config& cfg : {Config{0.02, FastLevel::Grid, 0.005, 1, false, gridDefault},
+                            Config{0.02, FastLevel::Grid, 0.005, 1, true, gridDefault},
+                            Config{0.02, FastLevel::Grid, kMaxRadius, 1, true, gridDefault},
+                            Config{0.02, FastLevel::Grid, kMaxRadius, 1, false, kMaxRadius},
+                            Config{0.02, FastLevel::Hierarchy, 0.005, 2, false, gridDefault},
+                            Config{0.08, FastLevel::Hierarchy, kMaxRadius, 2, false, gridDefault},
+                            Config{0.0, FastLevel::Hierarchy, 0.005, 4, false, gridDefault},
+                            Config{0.02, FastLevel::Flat, 0.005, 4, false, gridDefault}}) {
     const auto configStart = Clock::now();
     const auto set = std::make_shared<const ClodSphereSet>(builder.build(cfg.d));
-    const ClodDetector det(mesh, set, cfg.fast);
+    const ClodDetector det(mesh, set, cfg.fast, cfg.gridRadius);
     {
       const double r = cfg.r;
-      SCOPED_TRACE(GetParam() + " d=" + std::to_string(cfg.d) + " r=" + std::to_string(r) +
-                   (cfg.fast == FastLevel::Flat ? " flat" : " hierarchy"));
+      const char* fastName = cfg.fast == FastLevel::Flat ? "flat" : cfg.fast == FastLevel::Grid ? "grid" : "hierarchy";
+      SCOPED_TRACE(GetParam() + " d=" + std::to_string(cfg.d) + " r=" + std::to_string(r) + " " + fastName +
+                   (cfg.cache ? " cache" : ""));
       std::vector<Counts> parts(kThreads);
       std::vector<std::vector<std::string>> failures(kThreads);
       const std::size_t chunk = (probes.size() + kThreads - 1) / kThreads;
       clod_test::parallelFor(probes.size(), kThreads, [&](std::size_t b, std::size_t e) {
         const std::size_t part = b / chunk;
-        parts[part] = compareRange(*mesh, det, probes, bf, r, b, e, cfg.stride, failures[part]);
+        parts[part] = compareRange(*mesh, det, probes, bf, r, b, e, cfg.stride, cfg.cache, failures[part]);
       });
       Counts k;
       for (std::size_t t = 0; t < kThreads; ++t) {
@@ -298,9 +312,9 @@ TEST_P(DetectorVsBruteForce, HundredThousandProbes) {
       EXPECT_LE(k.paperMissRounding, k.probes / 10000) << "rounding-only misses should be rare";
       EXPECT_EQ(k.spheresMiss, 0u);
       EXPECT_GT(k.contacts, k.probes / 50) << "the probe set must exercise contacts";
-      std::printf("[ INFO     ] %-22s d=%.2f r=%.3f %-9s: %zu spheres, %zu probes, %zu contacts, paper misses %zu "
+      std::printf("[ INFO     ] %-22s d=%.2f r=%.3f %-9s%-6s: %zu spheres, %zu probes, %zu contacts, paper misses %zu "
                   "(edge/vertex closest point; %zu more on an edge within rounding), %.1f s\n",
-                  GetParam().c_str(), cfg.d, r, cfg.fast == FastLevel::Flat ? "flat" : "hierarchy", set->size(),
+                  GetParam().c_str(), cfg.d, r, fastName, cfg.cache ? " cache" : "", set->size(),
                   k.probes, k.contacts, k.paperMissEdge, k.paperMissRounding, seconds(configStart));
     }
   }
@@ -360,9 +374,10 @@ TEST(ClodDetector, QueryAllocatesNothing) {
   const auto far = uniformProbes(*mesh, 1000, 0.5, 4);
   probes.insert(probes.end(), far.begin(), far.end());
   for (double d : {0.0, 0.02, 0.08})
-    for (FastLevel fast : {FastLevel::Hierarchy, FastLevel::Flat}) {
+    for (FastLevel fast : {FastLevel::Grid, FastLevel::Hierarchy, FastLevel::Flat}) {
       const ClodDetector det(mesh, std::make_shared<const ClodSphereSet>(builder.build(d)), fast);
       ContactResult out;
+      QueryCache cache;
       std::size_t contacts = 0;
       gAllocations = 0;
       gCounting = true;
@@ -370,6 +385,8 @@ TEST(ClodDetector, QueryAllocatesNothing) {
         for (const Vec3& p : probes)
           for (double r : {0.0, 0.005, 0.05, 1.0}) {
             det.query(p, r, mode, out);
+            contacts += out.contact;
+            det.query(p, r, mode, out, &cache);
             contacts += out.contact;
           }
       gCounting = false;
@@ -383,6 +400,36 @@ TEST(ClodDetector, QueryAllocatesNothing) {
   gCounting = false;
   delete leak;
   EXPECT_GE(gAllocations.load(), 1);
+}
+
+// Regression (fuzz/fuzz_mesh_load, minimised): two triangles of a mutated STL cube. The Grid fast
+// level missed every contact near the vertex (3, 3, 0) for r up to 1e-3; Hierarchy and Flat did not.
+TEST(ClodDetector, GridRegressionTwoTriangles) {
+  const auto mesh = std::make_shared<const TriangleMesh>(
+      makeMesh({Vec3(3, 3, 2), Vec3(3, 3, 0), Vec3(0, 0, 0), Vec3(3.0000009536743164, 2, 3), Vec3(3, 4, 5), Vec3(3, 2, 5)},
+               {{0, 1, 2}, {3, 4, 5}}, "fuzz-two-triangles"));
+  const ClodBuilder builder(mesh);
+  std::mt19937_64 rng(1);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (double d : {0.0, 0.5})
+    for (FastLevel fast : {FastLevel::Grid, FastLevel::Hierarchy, FastLevel::Flat}) {
+      const ClodDetector det(mesh, std::make_shared<const ClodSphereSet>(builder.build(d)), fast);
+      for (double r : {0.0, 1e-9, 1e-3, 0.05, 0.5}) {
+        std::size_t contacts = 0, mismatches = 0;
+        ContactResult got;
+        for (int i = 0; i < 500; ++i) {
+          Vec3 offset = Vec3(g(rng), g(rng), g(rng)).normalized() * (0.9 * r * std::abs(g(rng)));
+          if (i == 0) offset.setZero();
+          const Vec3 p = Vec3(3, 3, 0) + offset;
+          const ContactResult ref = bruteForceQuery(*mesh, p, r);
+          det.query(p, r, DetectionMode::Exact, got);
+          contacts += ref.contact;
+          mismatches += got.contact != ref.contact;
+        }
+        EXPECT_EQ(mismatches, 0u) << "fast level " << int(fast) << " d=" << d << " r=" << r << ": " << contacts
+                                  << " brute-force contacts";
+      }
+    }
 }
 
 TEST(ClodDetector, InvalidQueriesAnswerNoContact) {
@@ -414,7 +461,7 @@ TEST(ClodDetector, HitSpheresMatchesDirectOverlapTest) {
   const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("elephant.off"));
   const ClodBuilder builder(mesh);
   for (double d : {0.0, 0.04})
-    for (FastLevel fast : {FastLevel::Hierarchy, FastLevel::Flat}) {
+    for (FastLevel fast : {FastLevel::Grid, FastLevel::Hierarchy, FastLevel::Flat}) {
       const auto set = std::make_shared<const ClodSphereSet>(builder.build(d));
       const ClodDetector det(mesh, set, fast);
       const auto probes = uniformProbes(*mesh, 2000, 0.05, 21);
@@ -436,23 +483,31 @@ TEST(ClodDetector, HitSpheresMatchesDirectOverlapTest) {
     }
 }
 
-TEST(ClodDetector, FlatAndHierarchyGiveTheSameAnswers) {
+TEST(ClodDetector, AllFastLevelsAndTheCacheGiveTheSameAnswers) {
   const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("mannequin-devil.off"));
   const ClodBuilder builder(mesh);
   const auto set = std::make_shared<const ClodSphereSet>(builder.build(0.03));
-  const ClodDetector tree(mesh, set, FastLevel::Hierarchy), flat(mesh, set, FastLevel::Flat);
-  const auto probes = nearSurfaceProbes(*mesh, 20000, 0.01, 5);
-  ContactResult a, b;
-  for (DetectionMode mode : {DetectionMode::Exact, DetectionMode::Paper, DetectionMode::Spheres})
+  const ClodDetector tree(mesh, set, FastLevel::Hierarchy), flat(mesh, set, FastLevel::Flat),
+      grid(mesh, set, FastLevel::Grid);
+  auto probes = nearSurfaceProbes(*mesh, 20000, 0.01, 5);
+  sortMorton(probes);
+  ContactResult a, b, c, g;
+  for (DetectionMode mode : {DetectionMode::Exact, DetectionMode::Paper, DetectionMode::Spheres}) {
+    QueryCache cache;
     for (const Vec3& p : probes) {
       tree.query(p, 0.005, mode, a);
       flat.query(p, 0.005, mode, b);
-      ASSERT_EQ(a.contact, b.contact) << toString(mode);
-      if (a.contact) {
-        ASSERT_EQ(a.distance, b.distance) << toString(mode);
-        ASSERT_EQ(a.triangle, b.triangle) << toString(mode);
+      grid.query(p, 0.005, mode, c);
+      grid.query(p, 0.005, mode, g, &cache);
+      for (const ContactResult* o : {&b, &c, &g}) {
+        ASSERT_EQ(a.contact, o->contact) << toString(mode);
+        if (a.contact) {
+          ASSERT_EQ(a.distance, o->distance) << toString(mode);
+          ASSERT_EQ(a.triangle, o->triangle) << toString(mode);
+        }
       }
     }
+  }
 }
 
 TEST(FastLevel, Parses) {
@@ -461,6 +516,8 @@ TEST(FastLevel, Parses) {
   EXPECT_EQ(level, FastLevel::Flat);
   EXPECT_TRUE(parseFastLevel("hierarchy", level));
   EXPECT_EQ(level, FastLevel::Hierarchy);
+  EXPECT_TRUE(parseFastLevel("grid", level));
+  EXPECT_EQ(level, FastLevel::Grid);
   EXPECT_FALSE(parseFastLevel("tree", level));
   EXPECT_FALSE(parseFastLevel(nullptr, level));
   DetectionMode mode;

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <map>
 #include <string>
@@ -130,6 +131,29 @@ TEST(MeshLoader, NoFaces) { expectLoadError(testData("no_faces.off"), {"triangle
 TEST(MeshLoader, NanCoordinateOff) { expectLoadError(testData("nan_vertex.off"), {"non-finite"}); }
 TEST(MeshLoader, InfCoordinateOff) { expectLoadError(testData("inf_vertex.off"), {"non-finite"}); }
 TEST(MeshLoader, NanCoordinateObj) { expectLoadError(testData("nan_vertex.obj"), {"non-finite"}); }
+
+// Regressions (fuzz/fuzz_mesh_load): a face index beyond the vertex count is a load error, never an
+// out-of-bounds read. Run in a child process so a crash fails this test, not the whole binary.
+// ascii: heap-buffer-overflow in mesh_loader.cpp collect(); binary, huge indices: SEGV inside
+// assimp's post-processing (aiProcess_ValidateDataStructure would reject both before any step reads).
+int loadInChild(const std::string& path) {
+  try {
+    loadMesh(path);
+  } catch (const MeshLoadError& e) {
+    return std::string(e.what()).find(path) != std::string::npos ? 0 : 2;
+  } catch (...) {
+    return 3;
+  }
+  return 1;  // loaded a mesh with a face the file does not define
+}
+TEST(MeshLoaderDeathTest, FaceIndexOutOfRangeAsciiPly) {
+  ::testing::FLAGS_gtest_death_test_style = "threadsafe";
+  EXPECT_EXIT(std::exit(loadInChild(testData("bad_index.ply"))), ::testing::ExitedWithCode(0), "");
+}
+TEST(MeshLoaderDeathTest, FaceIndexOutOfRangeBinaryPly) {
+  ::testing::FLAGS_gtest_death_test_style = "threadsafe";
+  EXPECT_EXIT(std::exit(loadInChild(testData("bad_index_binary.ply"))), ::testing::ExitedWithCode(0), "");
+}
 
 TEST(MeshLoader, ErrorsDeriveFromRuntimeError) {
   try {

@@ -122,7 +122,7 @@ void checkAgainstBruteForce(const std::shared_ptr<const TriangleMesh>& mesh, con
   ASSERT_TRUE(problems.empty()) << clod_test::join(problems);
   const auto set = std::make_shared<const ClodSphereSet>(setValue);
   const double size = std::max(mesh->diagonal(), std::numeric_limits<double>::min());
-  for (FastLevel fast : {FastLevel::Hierarchy, FastLevel::Flat}) {
+  for (FastLevel fast : {FastLevel::Grid, FastLevel::Hierarchy, FastLevel::Flat}) {
     const ClodDetector det(mesh, set, fast);
     ContactResult exact, paper, spheres;
     int failures = 0;
@@ -152,7 +152,7 @@ void checkAgainstBruteForce(const std::shared_ptr<const TriangleMesh>& mesh, con
         if (spheres.contact) ok = ok && spheres.point.allFinite() && spheres.normal.allFinite();
         if (!ok) {
           ++failures;
-          ADD_FAILURE() << (fast == FastLevel::Flat ? "flat" : "hierarchy") << " probe " << i << " ("
+          ADD_FAILURE() << (fast == FastLevel::Flat ? "flat" : fast == FastLevel::Grid ? "grid" : "hierarchy") << " probe " << i << " ("
                         << p.transpose() << ") r=" << r << ": brute force contact " << ref.contact << " distance "
                         << ref.distance << "; exact " << exact.contact << " " << exact.distance << "; paper "
                         << paper.contact << "; spheres " << spheres.contact;
@@ -474,6 +474,29 @@ TEST(Property, RandomTriangleSoups) {
     const double d = std::uniform_real_distribution<double>(0.0, 0.1)(rng);
     const auto probes = probesFor(*mesh, 150, 50, 0.03, 2000 + m);
     checkAgainstBruteForce(mesh, builder.build(d), probes, {0.0, 0.01, 0.04}, "soup " + std::to_string(m), &stats);
+  }
+  EXPECT_GT(stats.probes, 5000u);
+  EXPECT_GT(stats.contacts, stats.probes / 10);
+}
+
+TEST(Property, RandomMeshesAtRandomScaleAndOffset) {
+  // Not normalised: coordinates of a few units away from the origin, as a mesh file gives them.
+  std::mt19937_64 rng(4711);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  CheckStats stats;
+  for (int m = 0; m < 24; ++m) {
+    TriangleMesh raw = m % 2 ? randomSoup(rng, 10 + 7 * m) : randomBlob(rng, 5 + m % 7, 6 + m % 11, 0.5);
+    const double s = std::pow(10.0, 1.5 * u(rng));
+    const Vec3 offset = 5.0 * Vec3(u(rng), u(rng), u(rng));
+    std::vector<Vec3> v = raw.vertices;
+    for (Vec3& x : v) x = s * x + offset;
+    const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(v, raw.triangles, "random"));
+    const double size = mesh->diagonal();
+    const ClodBuilder builder(mesh);
+    const double d = std::uniform_real_distribution<double>(0.0, 0.1)(rng) * size;
+    const auto probes = probesFor(*mesh, 150, 50, 0.03 * size, 3000 + m);
+    checkAgainstBruteForce(mesh, builder.build(d), probes, {0.0, 0.003 * size, 0.02 * size},
+                           "random mesh " + std::to_string(m), &stats);
   }
   EXPECT_GT(stats.probes, 5000u);
   EXPECT_GT(stats.contacts, stats.probes / 10);
