@@ -91,11 +91,13 @@ void HapticDetector::readParameters() {
   pnh_.param("pose_queue_size", poseQueueSize_, 100);
   pnh_.param("marker_rate", markerRate_, 30.0);
   std::string fast;
-  pnh_.param<std::string>("fast_level", fast, "hierarchy");
+  pnh_.param<std::string>("fast_level", fast, "grid");
+  pnh_.param("grid_radius", gridRadius_, 0.0);
   if (!std::isfinite(scale_) || scale_ <= 0.0) throw InvalidParameter("~scale must be finite and positive");
   if (!parseFastLevel(fast.c_str(), fastLevel_)) {
-    throw InvalidParameter("~fast_level must be 'hierarchy' or 'flat', not '" + fast + "'");
+    throw InvalidParameter("~fast_level must be grid, hierarchy or flat, not '" + fast + "'");
   }
+  if (!std::isfinite(gridRadius_) || gridRadius_ < 0.0) throw InvalidParameter("~grid_radius must be >= 0");
   if (!(markerRate_ > 0.0) || markerRate_ > 200.0) throw InvalidParameter("~marker_rate must be in (0, 200] Hz");
   if (poseQueueSize_ < 1) throw InvalidParameter("~pose_queue_size must be at least 1");
   std::string mode;
@@ -150,7 +152,7 @@ void HapticDetector::onPose(const geometry_msgs::PoseStampedConstPtr& msg) {
   ContactResult result;
   const auto start = std::chrono::steady_clock::now();
   if (level) {
-    level->detector->query(p, radius, mode, result);
+    level->detector->query(p, radius, mode, result, &queryCache_);  // one stream: this callback
   } else {
     result = bruteForceQuery(*mesh_, p, radius);  // no level yet: the reference answers
     bruteForce_.fetch_add(1, std::memory_order_relaxed);
@@ -287,7 +289,7 @@ std::shared_ptr<const HapticDetector::Level> HapticDetector::makeLevel(double di
     set = std::make_shared<const ClodSphereSet>(localBuilder_->build(distance));
     level->source = "local";
   }
-  level->detector = std::make_shared<const ClodDetector>(mesh_, set, fastLevel_);
+  level->detector = std::make_shared<const ClodDetector>(mesh_, set, fastLevel_, gridRadius_);
   level->distance = distance;
   level->spheres = static_cast<std::uint32_t>(set->size());
   level->readyMs = msSince(start);

@@ -350,7 +350,13 @@ TEST(Detector, DetectionModeAndPointerRadiusFollowReconfigure) {
   const double d = dc.status().clustering_distance;
   auto mesh = std::make_shared<const TriangleMesh>(dc.mesh());
   auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(d));
-  const ClodDetector reference(mesh, set, FastLevel::Hierarchy);
+  std::string fastName;
+  ros::NodeHandle(dc.ns()).param<std::string>("fast_level", fastName, "grid");
+  FastLevel fast;
+  ASSERT_TRUE(parseFastLevel(fastName.c_str(), fast));
+  double gridRadius = 0.0;
+  ros::NodeHandle(dc.ns()).param("grid_radius", gridRadius, 0.0);
+  const ClodDetector reference(mesh, set, fast, gridRadius);
   const double r = 1.5 * dc.radius();
   const auto points = dc.probes(150, 30, 41);
   for (const char* name : {"spheres", "paper", "exact"}) {

@@ -94,7 +94,8 @@ class HapticDetector {
   bool useService_ = true;
   int poseQueueSize_ = 100;
   double markerRate_ = 30.0;
-  FastLevel fastLevel_ = FastLevel::Hierarchy;
+  FastLevel fastLevel_ = FastLevel::Grid;
+  double gridRadius_ = 0.0;  // 0: the core's default (1% of the model's diagonal)
 
   std::shared_ptr<const TriangleMesh> mesh_;
   std::unique_ptr<ClodBuilder> localBuilder_;  // lazily, on the worker thread only
@@ -108,6 +109,9 @@ class HapticDetector {
 
   // The current level: read with std::atomic_load, replaced with std::atomic_store.
   std::shared_ptr<const Level> level_;
+  // Temporal coherence of the pose stream; used only by onPose, which one thread runs at a time
+  // (ros::spin in the node, the nodelet's single-threaded handle). A new level ignores the old entry.
+  QueryCache queryCache_;
 
   // Level worker.
   std::thread worker_;
