@@ -79,6 +79,7 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
   for (int k = 0; k < 3; ++k)
     dims_[k] = std::min<std::int64_t>(kMaxDim, static_cast<std::int64_t>(std::ceil((bounds.sizes()[k] + 2 * (reach + h)) * inv_)) + 1);
 
+  const double tiny = std::max(1e-9 * h, 4e-9 * magnitude);
   std::vector<Candidate> candidates;
   for (std::size_t t = 0; t < mesh.size(); ++t) {
     const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
@@ -99,9 +100,17 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
           if (d <= reach) {
             const std::uint64_t key = static_cast<std::uint64_t>(x) | static_cast<std::uint64_t>(y) << kBits |
                                       static_cast<std::uint64_t>(z) << (2 * kBits);
-            const Vec3 u = d > 0.0 ? Vec3(toCentre / d) : Vec3::Zero();
-            candidates.push_back({key, roundDown(d), static_cast<std::uint32_t>(t),
-                                  {static_cast<float>(u.x()), static_cast<float>(u.y()), static_cast<float>(u.z())}});
+            // The supporting-plane bound needs the true direction to the centre. The closest point
+            // carries an error of a few ulps of the coordinates, so its direction is trusted only when
+            // d is far above it (the bound then errs by < 1e-7 |p - q|, inside the slack); otherwise the
+            // entry keeps the trivial bound 0 <= distance (dc = 0, u = 0): never skipped, never wrong.
+            if (d > tiny) {
+              const Vec3 u = toCentre / d;
+              candidates.push_back({key, roundDown(d), static_cast<std::uint32_t>(t),
+                                    {static_cast<float>(u.x()), static_cast<float>(u.y()), static_cast<float>(u.z())}});
+            } else {
+              candidates.push_back({key, 0.0f, static_cast<std::uint32_t>(t), {0.0f, 0.0f, 0.0f}});
+            }
           }
         }
   }

@@ -34,7 +34,7 @@ struct PositionEqual {
 // Walks the node tree so every mesh instance lands in model coordinates.
 void collect(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent, std::vector<Vec3>& vertices,
              std::vector<Triangle>& triangles, std::unordered_map<Vec3, std::uint32_t, PositionHash, PositionEqual>& ids,
-             bool& nonFinite) {
+             bool& nonFinite, std::string& badIndex) {
   const aiMatrix4x4 transform = parent * node->mTransformation;
   for (unsigned m = 0; m < node->mNumMeshes; ++m) {
     const aiMesh* mesh = scene->mMeshes[node->mMeshes[m]];
@@ -53,11 +53,17 @@ void collect(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
       const aiFace& face = mesh->mFaces[f];
       if (face.mNumIndices != 3) continue;  // points and lines carry no surface
+      for (unsigned k = 0; k < 3; ++k)
+        if (face.mIndices[k] >= mesh->mNumVertices) {
+          badIndex = "face " + std::to_string(f) + " refers to vertex " + std::to_string(face.mIndices[k]) + " of " +
+                     std::to_string(mesh->mNumVertices);
+          return;
+        }
       triangles.push_back({local[face.mIndices[0]], local[face.mIndices[1]], local[face.mIndices[2]]});
     }
   }
   for (unsigned c = 0; c < node->mNumChildren; ++c)
-    collect(scene, node->mChildren[c], transform, vertices, triangles, ids, nonFinite);
+    collect(scene, node->mChildren[c], transform, vertices, triangles, ids, nonFinite, badIndex);
 }
 
 }  // namespace
@@ -106,7 +112,10 @@ TriangleMesh loadMesh(const std::string& path, const MeshLoadOptions& options) {
   Assimp::Importer importer;
   // Join only exact duplicates ourselves (assimp's joining also compares normals and UVs, so an STL's
   // per-face vertices would stay apart); keep degenerate triangles: they must be covered too.
-  const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_SortByPType);
+  // ValidateDataStructure runs first and fails the import on out-of-range indices, which the PLY
+  // reader passes through and the later steps would read out of bounds.
+  const aiScene* scene =
+      importer.ReadFile(path, aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_SortByPType);
   if (scene == nullptr) {
     std::string why = importer.GetErrorString();
     throw MeshLoadError(path, "unreadable format (" + (why.empty() ? std::string("assimp gave no reason") : why) + ")");
@@ -117,8 +126,10 @@ TriangleMesh loadMesh(const std::string& path, const MeshLoadOptions& options) {
   std::vector<Triangle> triangles;
   std::unordered_map<Vec3, std::uint32_t, PositionHash, PositionEqual> ids;
   bool nonFinite = false;
-  collect(scene, scene->mRootNode, aiMatrix4x4(), vertices, triangles, ids, nonFinite);
+  std::string badIndex;
+  collect(scene, scene->mRootNode, aiMatrix4x4(), vertices, triangles, ids, nonFinite, badIndex);
   if (nonFinite) throw MeshLoadError(path, "non-finite vertex coordinates (NaN or Inf)");
+  if (!badIndex.empty()) throw MeshLoadError(path, "corrupt file: " + badIndex);
   if (triangles.empty()) throw MeshLoadError(path, "no triangles");
 
   std::string name = std::filesystem::path(path).filename().string();
