@@ -263,6 +263,12 @@ TEST(Detector, PosesInContactsOutMatchBruteForce) {
     (c.in_contact ? touching : free) += 1;
     EXPECT_GT(c.level_spheres, 0u);
   }
+  // Where the level came from: "service" (sphere_builder) or "local" (no service, or a set that does
+  // not fit this detector's mesh).
+  std::string source;
+  if (ros::NodeHandle("~").getParam("expect_level_source", source)) {
+    EXPECT_EQ(dc.status().level_source, source);
+  }
   // The probe set must exercise both answers, or the test proves little.
   EXPECT_GT(touching, points.size() / 5);
   EXPECT_GT(free, points.size() / 5);
