@@ -1,0 +1,147 @@
+// CellGrid, the Grid fast level's precomputed candidates, checked against its documented contract:
+// every triangle within radius + h sqrt(3)/2 of a cell's centre is listed, entries are sorted, the
+// float centre distance is rounded down, and the float supporting-plane bound (minus slack) never
+// exceeds the true distance from a point of the cell to the triangle (the float path's error bound).
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <set>
+#include <vector>
+
+#include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/cell_grid.h"
+#include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/geometry.h"
+#include "clod_haptics/core/probes.h"
+#include "test_helpers.h"
+
+namespace {
+
+using namespace clod_haptics;
+
+double distanceToTriangle(const TriangleMesh& mesh, std::size_t t, const Vec3& p) {
+  return (p - closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2))).norm();
+}
+
+// Checks the contract on the cells of the given probes; returns the number of cells checked.
+std::size_t checkGrid(const TriangleMesh& mesh, const CellGrid& grid, const std::vector<Vec3>& probes,
+                      const std::string& label) {
+  SCOPED_TRACE(label);
+  const double h = grid.cellSize();
+  const double reach = grid.radius() + 0.8660254037844386 * h;
+  std::set<std::uint64_t> checked;
+  int failures = 0;
+  for (const Vec3& p : probes) {
+    if (failures > 5) break;
+    const std::uint64_t key = grid.keyOf(p);
+    const CellGrid::Cell* cell = grid.find(key);
+    if (cell == nullptr) {
+      // No cell: no triangle within the grid radius of p.
+      if (bruteForceQuery(mesh, p, grid.radius() * (1 - 1e-9)).contact) {
+        ++failures;
+        ADD_FAILURE() << "no cell for " << p.transpose() << " but a triangle is within the grid radius";
+      }
+      continue;
+    }
+    const Vec3 centre = grid.centreOf(key);
+    const Vec3 rel = p - centre;
+    if (rel.cwiseAbs().maxCoeff() > 0.5 * h * (1 + 1e-9)) {
+      ++failures;
+      ADD_FAILURE() << "probe " << p.transpose() << " is not in the cell whose centre is " << centre.transpose();
+    }
+    const CellGrid::Entry* e = grid.entries(*cell);
+    std::vector<char> listed(mesh.size(), 0);
+    for (std::uint32_t i = 0; i < cell->count; ++i) {
+      const std::size_t t = e[i].triangle;
+      if (t >= mesh.size()) {
+        ADD_FAILURE() << "triangle index " << t << " out of range";
+        return checked.size();
+      }
+      listed[t] = 1;
+      if (i > 0) {
+        EXPECT_LE(e[i - 1].centreDistance, e[i].centreDistance) << "entries sorted";
+      }
+      const double dc = distanceToTriangle(mesh, t, centre);
+      EXPECT_LE(double(e[i].centreDistance), dc) << "centre distance rounded down, triangle " << t;
+      EXPECT_GE(double(e[i].centreDistance), dc - 1e-6 * h - 1e-12) << "triangle " << t;
+      // The bound used to skip a triangle for this p.
+      const double bound = double(e[i].centreDistance) + rel.x() * e[i].direction[0] + rel.y() * e[i].direction[1] +
+                           rel.z() * e[i].direction[2] - grid.slack();
+      const double truth = distanceToTriangle(mesh, t, p);
+      if (bound > truth) {
+        ++failures;
+        ADD_FAILURE() << "bound " << bound << " exceeds the distance " << truth << " from " << p.transpose()
+                      << " to triangle " << t << " (centre distance " << dc << ", direction " << e[i].direction[0]
+                      << " " << e[i].direction[1] << " " << e[i].direction[2] << ")";
+      }
+    }
+    if (!checked.insert(key).second) continue;
+    for (std::size_t t = 0; t < mesh.size(); ++t)
+      if (!listed[t] && distanceToTriangle(mesh, t, centre) <= reach * (1 - 1e-9)) {
+        ++failures;
+        ADD_FAILURE() << "triangle " << t << " is within reach of cell centre " << centre.transpose()
+                      << " but not listed";
+      }
+  }
+  return checked.size();
+}
+
+std::vector<Vec3> probesNear(const TriangleMesh& mesh, double offset, std::uint64_t seed) {
+  std::vector<Vec3> probes = nearSurfaceProbes(mesh, 3000, offset, seed);
+  const auto u = uniformProbes(mesh, 500, offset, seed + 1);
+  probes.insert(probes.end(), u.begin(), u.end());
+  for (const Vec3& v : mesh.vertices) probes.push_back(v);
+  return probes;
+}
+
+TEST(CellGrid, ContractOnSharedMeshes) {
+  for (const char* name : {"head.off", "mesh_with_border.off", "degtri_sliding.off"}) {
+    const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
+    const ClodSphereSet set = ClodBuilder(mesh).build(0.02);
+    for (double radius : {0.005, 0.02}) {
+      const CellGrid grid(*mesh, set, radius);
+      EXPECT_FALSE(grid.empty());
+      EXPECT_GE(grid.cellSize(), 2 * radius * (1 - 1e-12));
+      EXPECT_GT(checkGrid(*mesh, grid, probesNear(*mesh, 2 * radius, 3), name), 100u);
+    }
+  }
+}
+
+// Triangles in planes through the cell-centre lattice (x = y): a cell centre can lie on a triangle
+// to within rounding, where the direction from the triangle to the centre is noise.
+TEST(CellGrid, ContractOnPlanesThroughCellCentres) {
+  const auto mesh = std::make_shared<const TriangleMesh>(
+      makeMesh({Vec3(3, 3, 2), Vec3(3, 3, 0), Vec3(0, 0, 0), Vec3(3.0000009536743164, 2, 3), Vec3(3, 4, 5), Vec3(3, 2, 5)},
+               {{0, 1, 2}, {3, 4, 5}}, "fuzz-two-triangles"));
+  const ClodSphereSet set = ClodBuilder(mesh).build(0.0);
+  const CellGrid grid(*mesh, set, 0.01 * mesh->diagonal());
+  std::vector<Vec3> probes = probesNear(*mesh, 0.02, 5);
+  probes.push_back(Vec3(3, 3, 0));
+  checkGrid(*mesh, grid, probes, "two triangles");
+  // A square in the plane x = y, both orientations.
+  const auto diag = std::make_shared<const TriangleMesh>(makeMesh(
+      {Vec3(0, 0, 0), Vec3(1, 1, 0), Vec3(1, 1, 1), Vec3(0, 0, 1)}, {{0, 1, 2}, {0, 2, 3}, {0, 2, 1}, {0, 3, 2}}, "x=y"));
+  const ClodSphereSet diagSet = ClodBuilder(diag).build(0.0);
+  for (double radius : {0.005, 0.01, 0.0125, 0.02})
+    checkGrid(*diag, CellGrid(*diag, diagSet, radius), probesNear(*diag, 2 * radius, 7), "x=y r=" + std::to_string(radius));
+}
+
+TEST(CellGrid, BadRadiusThrows) {
+  const auto mesh = clod_test::loadNormalized(clod_test::testData("cube.obj"));
+  const ClodSphereSet set = ClodBuilder(mesh).build(0.0);
+  for (double r : {0.0, -1.0, std::nan(""), double(INFINITY)}) EXPECT_THROW(CellGrid(*mesh, set, r), InvalidParameter) << r;
+}
+
+TEST(CellGrid, OutsideKeyForFarPoints) {
+  const auto mesh = clod_test::loadNormalized(clod_test::testData("cube.obj"));
+  const ClodSphereSet set = ClodBuilder(mesh).build(0.0);
+  const CellGrid grid(*mesh, set, 0.01);
+  EXPECT_EQ(grid.keyOf(Vec3(100, 0.5, 0.5)), CellGrid::kOutside);
+  EXPECT_EQ(grid.keyOf(Vec3(0.5, -100, 0.5)), CellGrid::kOutside);
+  EXPECT_EQ(grid.find(CellGrid::kOutside), nullptr);
+  EXPECT_NE(grid.find(grid.keyOf(Vec3(0.5, 0.5, 1.0))), nullptr) << "a point on the surface has candidates";
+}
+
+}  // namespace

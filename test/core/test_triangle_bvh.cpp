@@ -1,0 +1,82 @@
+// TriangleBvh::forEachRayHit against every triangle tested with rayTriangle: the same hits, the same t.
+
+#include <gtest/gtest.h>
+
+#include <limits>
+#include <map>
+#include <random>
+
+#include "clod_haptics/core/geometry.h"
+#include "clod_haptics/core/probes.h"
+#include "clod_haptics/core/triangle_bvh.h"
+#include "test_helpers.h"
+
+namespace {
+
+using namespace clod_haptics;
+
+void checkRays(const TriangleMesh& mesh, int rays, std::uint64_t seed) {
+  const TriangleBvh bvh(mesh);
+  ASSERT_FALSE(bvh.nodes().empty());
+  std::vector<std::uint32_t> order = bvh.order();
+  std::sort(order.begin(), order.end());
+  for (std::size_t t = 0; t < mesh.size(); ++t) ASSERT_EQ(order[t], t) << "every triangle in exactly one leaf";
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0, 1);
+  const auto origins = uniformProbes(mesh, rays, 0.1 * mesh.diagonal(), seed);
+  std::size_t total = 0;
+  for (int i = 0; i < rays; ++i) {
+    // Half the rays start at a centroid along the inward normal, as the placement casts them.
+    const std::size_t t0 = std::size_t(i) % mesh.size();
+    const bool fromCentroid = i % 2 == 0 && !mesh.normals[t0].isZero(0.0);
+    const Vec3 origin = fromCentroid ? mesh.centroid(t0) : origins[i];
+    const Vec3 dir = fromCentroid ? Vec3(-mesh.normals[t0]) : Vec3(g(rng), g(rng), g(rng));
+    const double tMaxInit = i % 3 == 0 ? 0.3 * mesh.diagonal() : std::numeric_limits<double>::infinity();
+    std::map<std::uint32_t, double> expected, got;
+    for (std::size_t t = 0; t < mesh.size(); ++t) {
+      double dist;
+      if (rayTriangle(origin, dir, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), dist) && dist < tMaxInit)
+        expected[std::uint32_t(t)] = dist;
+    }
+    double tMax = tMaxInit;
+    bvh.forEachRayHit(origin, dir, tMax, [&](std::uint32_t t, double dist) {
+      EXPECT_EQ(got.count(t), 0u) << "triangle reported twice";
+      got[t] = dist;
+    });
+    ASSERT_EQ(got, expected) << "ray " << i;
+    total += got.size();
+  }
+  EXPECT_GT(total, std::size_t(rays) / 10) << "the rays must hit something";
+}
+
+TEST(TriangleBvh, EveryHitOfEveryRay) {
+  checkRays(*clod_test::loadNormalized(clod_test::sharedMesh("head.off")), 3000, 1);
+  checkRays(*clod_test::loadNormalized(clod_test::sharedMesh("mesh_with_border.off")), 2000, 2);
+  checkRays(loadMesh(clod_test::testData("cube.obj")), 500, 3);
+}
+
+TEST(TriangleBvh, ShrinkingTMaxPrunesFartherHits) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("elephant.off"));
+  const TriangleBvh bvh(*mesh);
+  std::size_t rays = 0;
+  for (std::size_t t = 0; t < mesh->size(); t += 13) {
+    const Vec3 origin = mesh->centroid(t), dir = -mesh->normals[t];
+    double nearest = std::numeric_limits<double>::infinity();
+    for (std::size_t o = 0; o < mesh->size(); ++o) {
+      double d;
+      if (o != t && rayTriangle(origin, dir, mesh->vertex(o, 0), mesh->vertex(o, 1), mesh->vertex(o, 2), d) && d > 1e-9)
+        nearest = std::min(nearest, d);
+    }
+    double tMax = std::numeric_limits<double>::infinity(), found = tMax;
+    bvh.forEachRayHit(origin, dir, tMax, [&](std::uint32_t o, double d) {
+      if (o == t || d <= 1e-9) return;
+      found = std::min(found, d);
+      tMax = found;  // first-hit search
+    });
+    ASSERT_EQ(found, nearest) << "triangle " << t;
+    ++rays;
+  }
+  EXPECT_GT(rays, 100u);
+}
+
+}  // namespace
