@@ -121,6 +121,7 @@ void SceneHapticDetector::readParameters() {
   pnh_.param("static_retry", staticRetry_, 0.5);
   pnh_.param("prefetch_margin", prefetchMargin_, 0.05);
   pnh_.param("quick_start", quickStart_, true);
+  pnh_.param("grid_on_demand", gridOnDemand_, true);
   pnh_.param("pose_queue_size", poseQueueSize_, 100);
   std::string mode, fast;
   pnh_.param<std::string>("detection_mode", mode, "exact");
@@ -147,58 +148,71 @@ void SceneHapticDetector::readParameters() {
 
 void SceneHapticDetector::levelWorker() {
   // Stage 1 (quick start): hierarchy detectors, cheap to construct once the spheres are read or built.
-  // Stage 2: the configured fast level (grid: O(1) queries) replaces them, object by object.
+  // Stage 2: the configured fast level (grid: O(1) queries) replaces them, object by object: every
+  // object in turn, or (~grid_on_demand) only objects the pointer comes near, when it does.
   std::vector<FastLevel> stages;
   if (quickStart_ && fastLevel_ != FastLevel::Hierarchy) stages.push_back(FastLevel::Hierarchy);
   stages.push_back(fastLevel_);
   const std::size_t n = objects_.size();
   const auto start = std::chrono::steady_clock::now();
+  auto prepare = [&](std::size_t i, FastLevel fast, bool final) {
+    const auto& object = objects_[i];
+    try {
+      SceneAssets::LevelInfo info;
+      auto level = assets_->level(scene_.mesh(static_cast<std::uint32_t>(i)), object.config.distance, fast, &info);
+      {
+        std::lock_guard<std::mutex> lock(readyMutex_);
+        ready_[i] = level;
+      }
+      readyPending_ = true;
+      levelsDirty_ = true;
+      if (!info.cache.problem.empty()) {
+        ROS_WARN("scene_detector: '%s': %s", object.config.name.c_str(), info.cache.problem.c_str());
+      }
+      ROS_INFO("scene_detector: '%s' level d = %g (%s) ready: %zu spheres, %s%s (%.0f ms + %.0f ms detector)",
+               object.config.name.c_str(), object.config.distance,
+               fast == FastLevel::Grid ? "grid" : fast == FastLevel::Hierarchy ? "hierarchy" : "flat",
+               level->spheres()->size(), info.shared ? "shared" : toString(info.cache.source),
+               info.shared ? "" : (" " + info.cache.path).c_str(), info.cache.ms, info.detectorMs);
+    } catch (const std::exception& e) {
+      ROS_ERROR("scene_detector: '%s': cannot prepare level d = %g: %s; answering it by brute force",
+                object.config.name.c_str(), object.config.distance, e.what());
+    }
+    if (final) {
+      wanted_[i] = false;
+      levelsReady_.fetch_add(1);
+    }
+  };
+  auto report = [&](FastLevel fast, const char* what) {
+    ROS_INFO("scene_detector: %s levels of %zu objects %s %.0f ms after start-up (cache %s: %lu hits, %lu built, "
+             "%lu rejected)",
+             fast == FastLevel::Grid ? "grid" : fast == FastLevel::Hierarchy ? "hierarchy" : "flat", n, what,
+             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
+             assets_->cache()->directory().c_str(), static_cast<unsigned long>(assets_->cache()->hits()),
+             static_cast<unsigned long>(assets_->cache()->misses()),
+             static_cast<unsigned long>(assets_->cache()->rejected()));
+  };
   for (std::size_t stage = 0; stage < stages.size() && !stop_; ++stage) {
-    const bool last = stage + 1 == stages.size();
+    const bool final = stage + 1 == stages.size();
+    const bool onDemand = final && stage > 0 && gridOnDemand_;
+    if (onDemand) report(stages[stage], "prepared when the pointer comes near; all answering");
     std::vector<char> done(n, 0);
-    for (std::size_t count = 0; count < n && !stop_; ++count) {
+    for (std::size_t count = 0; count < n && !stop_;) {
       // The object the stylus asks for (near the pointer, final level missing) first, else list order.
       std::size_t i = n;
       for (std::size_t k = 0; k < n && i == n; ++k)
         if (!done[k] && wanted_[k].load()) i = k;
-      for (std::size_t k = 0; k < n && i == n; ++k)
+      for (std::size_t k = 0; k < n && i == n && !onDemand; ++k)
         if (!done[k]) i = k;
-      done[i] = 1;
-      const auto& object = objects_[i];
-      try {
-        SceneAssets::LevelInfo info;
-        auto level = assets_->level(scene_.mesh(static_cast<std::uint32_t>(i)), object.config.distance, stages[stage],
-                                    &info);
-        {
-          std::lock_guard<std::mutex> lock(readyMutex_);
-          ready_[i] = level;
-        }
-        readyPending_ = true;
-        levelsDirty_ = true;
-        if (last) wanted_[i] = false;
-        if (!info.cache.problem.empty()) {
-          ROS_WARN("scene_detector: '%s': %s", object.config.name.c_str(), info.cache.problem.c_str());
-        }
-        ROS_INFO("scene_detector: '%s' level d = %g (%s) ready: %zu spheres, %s%s (%.0f ms + %.0f ms detector)",
-                 object.config.name.c_str(), object.config.distance,
-                 stages[stage] == FastLevel::Grid ? "grid" : stages[stage] == FastLevel::Hierarchy ? "hierarchy" : "flat",
-                 level->spheres()->size(), info.shared ? "shared" : toString(info.cache.source),
-                 info.shared ? "" : (" " + info.cache.path).c_str(), info.cache.ms, info.detectorMs);
-      } catch (const std::exception& e) {
-        ROS_ERROR("scene_detector: '%s': cannot prepare level d = %g: %s; answering it by brute force",
-                  object.config.name.c_str(), object.config.distance, e.what());
+      if (i == n) {  // on demand and nobody near: wait for the pointer
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        continue;
       }
+      done[i] = 1;
+      ++count;
+      prepare(i, stages[stage], final);
     }
-    if (!stop_) {
-      if (last) levelsReady_ = static_cast<std::uint32_t>(n);
-      ROS_INFO("scene_detector: %s levels of %zu objects ready %.0f ms after start-up (cache %s: %lu hits, %lu built, "
-               "%lu rejected)",
-               stages[stage] == FastLevel::Grid ? "grid" : "hierarchy", n,
-               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
-               assets_->cache()->directory().c_str(), static_cast<unsigned long>(assets_->cache()->hits()),
-               static_cast<unsigned long>(assets_->cache()->misses()),
-               static_cast<unsigned long>(assets_->cache()->rejected()));
-    }
+    if (!stop_) report(stages[stage], "ready");
   }
 }
 

@@ -21,6 +21,7 @@
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include "clod_haptics/ContactArray.h"
 #include "clod_haptics/core/brute_force.h"
@@ -341,6 +342,55 @@ TEST_F(SceneDetectorTest, LevelsReplaceBruteForceOnceReady) {
   EXPECT_EQ(answer->objects_brute_force, 0u);
   EXPECT_DOUBLE_EQ(answer->contacts[0].clustering_distance, config_.objects[0].distance);
   EXPECT_GT(answer->contacts[0].level_spheres, 0u);
+}
+
+TEST_F(SceneDetectorTest, MarkersOnceForMeshesAndOnlyOnChange) {
+  std::mutex m;
+  std::vector<visualization_msgs::MarkerArrayConstPtr> arrays;
+  ros::Subscriber sub = nh_.subscribe<visualization_msgs::MarkerArray>(
+      "/scene_detector/markers", 100, [&](const visualization_msgs::MarkerArrayConstPtr& msg) {
+        std::lock_guard<std::mutex> lock(m);
+        arrays.push_back(msg);
+      });
+  auto count = [&](const std::string& ns, int type, std::size_t from = 0) {
+    std::lock_guard<std::mutex> lock(m);
+    std::size_t n = 0;
+    for (std::size_t k = from; k < arrays.size(); ++k)
+      for (const auto& marker : arrays[k]->markers) n += marker.ns == ns && (type < 0 || marker.type == type);
+    return n;
+  };
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (count("scene_mesh", -1) < meshes_.size() && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  // Every mesh once, by reference (a few bytes whatever its size), in its own frame.
+  ASSERT_EQ(count("scene_mesh", visualization_msgs::Marker::MESH_RESOURCE), meshes_.size());
+  {
+    std::lock_guard<std::mutex> lock(m);
+    for (const auto& marker : arrays.front()->markers)
+      if (marker.ns == "scene_mesh") EXPECT_EQ(marker.header.frame_id, config_.objects.at(marker.id).frameId);
+  }
+  // A contact shows up as a contact marker with the object's index as id.
+  const Vec3 p = worldFromObject(0) * meshes_[0]->vertices[0];
+  ASSERT_TRUE(ask(p));
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+  bool contactShown = false;
+  {
+    std::lock_guard<std::mutex> lock(m);
+    for (const auto& a : arrays)
+      for (const auto& marker : a->markers)
+        contactShown |= marker.ns == "contact_point" && marker.id == 0 && marker.action == visualization_msgs::Marker::ADD;
+  }
+  EXPECT_TRUE(contactShown);
+  // Nothing changes (no pose, same pointer): neither the meshes nor the pointer are published again.
+  std::size_t before;
+  {
+    std::lock_guard<std::mutex> lock(m);
+    before = arrays.size();
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));
+  EXPECT_EQ(count("scene_mesh", -1, before), 0u);
+  EXPECT_EQ(count("pointer", -1, before), 0u);
+  EXPECT_EQ(count("scene_mesh", -1), meshes_.size()) << "meshes republished without a new subscriber";
 }
 
 }  // namespace

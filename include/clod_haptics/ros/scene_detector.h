@@ -28,7 +28,7 @@ namespace clod_haptics {
  * Parameters: ~scene (a scene file loaded with rosparam, see SceneConfig), ~pose_topic,
  * ~pointer_radius, ~detection_mode, ~stiffness, ~max_force, ~cache_dir, ~fast_level, ~marker_rate,
  * ~marker_objects (names to draw; empty: all), ~pose_queue_size, ~static_retry (s), ~quick_start,
- * ~prefetch_margin (m).
+ * ~grid_on_demand, ~prefetch_margin (m).
  *
  * Threads: poses arrive on the caller's node handle (the haptic path: one tf2 lookup for the pose's
  * frame when it differs from the scene frame, one per moving object, then one allocation-free
@@ -37,7 +37,8 @@ namespace clod_haptics {
  * thread swaps it in, so no pose waits for a build (objects without a level are answered by brute
  * force). Objects the pointer comes near (~prefetch_margin) are prepared first. With ~quick_start
  * and the grid fast level, every object first gets a hierarchy detector (cheap to construct from
- * the cached spheres), then the grid one replaces it in the background. Markers run on a private display queue, only while subscribed and only when changed.
+ * the cached spheres), then the grid one replaces it in the background: for every object, or with
+ * ~grid_on_demand only for the objects the pointer comes within ~prefetch_margin of. Markers run on a private display queue, only while subscribed and only when changed.
  */
 class SceneHapticDetector {
  public:
@@ -99,6 +100,7 @@ class SceneHapticDetector {
   double staticRetry_ = 0.5;
   double prefetchMargin_ = 0.05;
   bool quickStart_ = true;
+  bool gridOnDemand_ = true;
   int poseQueueSize_ = 100;
 
   // Core.
