@@ -402,7 +402,13 @@ void benchMesh(Run& run, const std::string& path) {
   // Sweep: every level, both fast levels, every mode, every probe set.
   if (has(s, "sweep")) {
     const DetectionMode modes[3] = {DetectionMode::Spheres, DetectionMode::Paper, DetectionMode::Exact};
+    struct Brief {
+      bool contact;
+      double distance;
+    };
     for (double d : s.distances) {
+      // The hierarchy's answers, to check that the flat list answers the same on its probes.
+      std::map<std::pair<int, std::string>, std::vector<Brief>> hierarchyAnswers;
       for (FastLevel level : {FastLevel::Hierarchy, FastLevel::Flat}) {
         t0 = std::chrono::steady_clock::now();
         ClodDetector detector(meshPtr, levels[d], level);
@@ -416,11 +422,22 @@ void benchMesh(Run& run, const std::string& path) {
               benchmark::DoNotOptimize(out[i]);
             });
             const Errors e = compare(out, set.ref, t.ns.size());
+            std::vector<Brief>& h = hierarchyAnswers[{static_cast<int>(mode), set.name}];
+            std::size_t contactDiff = 0, distanceDiff = 0;
+            if (level == FastLevel::Hierarchy) {
+              h.resize(t.ns.size());
+              for (std::size_t i = 0; i < h.size(); ++i) h[i] = {out[i].contact, out[i].distance};
+            } else {
+              for (std::size_t i = 0; i < std::min(h.size(), t.ns.size()); ++i) {
+                contactDiff += h[i].contact != out[i].contact;
+                distanceDiff += h[i].contact && out[i].contact && std::abs(h[i].distance - out[i].distance) > 1e-12;
+              }
+            }
             run.sweep->row(name, mesh.size(), d, levels[d]->size(), levelName(level), toString(mode), set.name, e.n,
                            num(t.median), num(t.mean), num(t.trimmedMean), num(t.p10), num(t.p90), num(t.p99), e.refContacts, e.ourContacts,
                            e.missed, e.falseContacts, num(e.meanDistance), num(e.maxDistance), num(e.meanNormalDeg),
                            num(e.maxNormalDeg), num(e.maxPoint), num(e.meanSpheresHit), num(e.meanTrianglesTested),
-                           num(detectorMs));
+                           num(detectorMs), contactDiff, distanceDiff);
           }
         }
         std::cout << "  d=" << d << " " << levelName(level) << " (" << levels[d]->size() << " spheres) done at "
@@ -692,7 +709,7 @@ int main(int argc, char** argv) {
         o + "sweep.csv",
         "mesh,triangles,d,spheres,level,mode,set,probes,median_ns,mean_ns,trimmed_mean_ns,p10_ns,p90_ns,p99_ns,ref_contacts,contacts,"
         "missed,false_contacts,mean_dist_err,max_dist_err,mean_normal_err_deg,max_normal_err_deg,max_point_err,"
-        "mean_spheres_hit,mean_tris_tested,detector_build_ms");
+        "mean_spheres_hit,mean_tris_tested,detector_build_ms,contact_diff_vs_hierarchy,distance_diff_vs_hierarchy");
   if (has(s, "peers"))
     run.peers = std::make_unique<Csv>(o + "peers.csv",
                                       "mesh,triangles,d,spheres,set,peer,probes,median_ns,mean_ns,p90_ns,p99_ns,"
