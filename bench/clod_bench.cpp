@@ -54,7 +54,7 @@ struct Settings {
   double r = 0.005;
   std::vector<double> distances{0.0, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08};
   std::size_t probes = 100000;          // per probe set (near-surface, uniform)
-  double budgetHierarchy = 4.0;         // seconds per (level, mode, probe set) of the sweep
+  double budgetHierarchy = 2.0;         // seconds per (level, mode, probe set) of the sweep
   double budgetFlat = 0.4;              // the flat list at small d costs milliseconds per query
   double budgetBrute = 3.0;             // seconds per probe set for the brute-force peer
   std::size_t bruteMax = 2000;          // and at most this many probes
