@@ -219,8 +219,9 @@ std::vector<Vec3> placeOver(const std::vector<Vec3>& trajectory, const TriangleM
   for (const Vec3& p : trajectory) tb.extend(p);
   const Eigen::AlignedBox3d mb = mesh.bounds();
   double s = std::numeric_limits<double>::infinity();
+  const double flat = 1e-9 * mb.sizes().maxCoeff();  // a planar mesh has no extent on one axis: skip it
   for (int k = 0; k < 3; ++k)
-    if (tb.sizes()[k] > 0) s = std::min(s, mb.sizes()[k] / tb.sizes()[k]);
+    if (tb.sizes()[k] > 0 && mb.sizes()[k] > flat) s = std::min(s, mb.sizes()[k] / tb.sizes()[k]);
   if (!std::isfinite(s)) s = 1.0;
   std::vector<Vec3> out;
   out.reserve(trajectory.size());
