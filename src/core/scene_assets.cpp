@@ -44,11 +44,54 @@ std::uint64_t SceneAssets::hashLocked(const std::shared_ptr<const TriangleMesh>&
   return h;
 }
 
+std::shared_ptr<const ClodSphereSet> SceneAssets::spheresLocked(const std::shared_ptr<const TriangleMesh>& mesh,
+                                                                 double distance, LevelInfo& out) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &distance, sizeof(bits));
+  const LevelKey key{mesh.get(), bits};
+  auto knownSet = sets_.find(key);
+  if (knownSet != sets_.end() && knownSet->second.first.lock() == mesh) {
+    out.shared = true;
+    out.cache.source = CacheSource::Hit;
+    return knownSet->second.second;
+  }
+  const std::uint64_t h = hashLocked(mesh);
+  auto build = [&]() -> ClodSphereSet {
+    std::shared_ptr<const ClodBuilder> use = builders_[h];
+    if (!use) {
+      use = std::make_shared<const ClodBuilder>(mesh);
+      ++placements_;
+      if (keepBuilders_) builders_[h] = use;
+    }
+    if (!keepBuilders_) builders_.erase(h);
+    return use->build(distance);
+  };
+  auto set = cache_->getOrBuild(*mesh, h, distance, build, &out.cache);
+  sets_[key] = {mesh, set};
+  return set;
+}
+
+namespace {
+double normalisedDistance(const std::shared_ptr<const TriangleMesh>& mesh, double distance, const char* what) {
+  if (!mesh) throw InvalidParameter(std::string(what) + ": no mesh");
+  requireNonNegative(distance, "clustering distance");
+  return distance == 0.0 ? 0.0 : distance;  // -0 and +0 are the same level
+}
+}  // namespace
+
+std::shared_ptr<const ClodSphereSet> SceneAssets::spheres(const std::shared_ptr<const TriangleMesh>& mesh,
+                                                          double distance, LevelInfo* info) {
+  distance = normalisedDistance(mesh, distance, "SceneAssets::spheres");
+  LevelInfo local;
+  LevelInfo& out = info ? *info : local;
+  out = LevelInfo();
+  std::lock_guard<std::mutex> lock(mutex_);
+  return spheresLocked(mesh, distance, out);
+}
+
 std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
                                                        FastLevel fastLevel, LevelInfo* info) {
-  if (!mesh) throw InvalidParameter("SceneAssets::level: no mesh");
-  requireNonNegative(distance, "clustering distance");
-  if (distance == 0.0) distance = 0.0;
+  distance = normalisedDistance(mesh, distance, "SceneAssets::level");
   LevelInfo local;
   LevelInfo& out = info ? *info : local;
   out = LevelInfo();
@@ -65,27 +108,7 @@ std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<con
     out.cache.source = CacheSource::Hit;
     return found->second;
   }
-  std::shared_ptr<const ClodSphereSet> set;
-  auto knownSet = sets_.find(key);
-  if (knownSet != sets_.end() && knownSet->second.first.lock() == mesh) {
-    set = knownSet->second.second;
-    out.shared = true;
-    out.cache.source = CacheSource::Hit;
-  } else {
-    const std::uint64_t h = hashLocked(mesh);
-    auto build = [&]() -> ClodSphereSet {
-      std::shared_ptr<const ClodBuilder> use = builders_[h];
-      if (!use) {
-        use = std::make_shared<const ClodBuilder>(mesh);
-        ++placements_;
-        if (keepBuilders_) builders_[h] = use;
-      }
-      if (!keepBuilders_) builders_.erase(h);
-      return use->build(distance);
-    };
-    set = cache_->getOrBuild(*mesh, h, distance, build, &out.cache);
-    sets_[key] = {mesh, set};
-  }
+  auto set = spheresLocked(mesh, distance, out);
   const auto start = std::chrono::steady_clock::now();
   auto detector = std::make_shared<const ClodDetector>(mesh, set, fastLevel, gridRadius_);
   out.detectorMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();

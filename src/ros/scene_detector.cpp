@@ -122,6 +122,7 @@ void SceneHapticDetector::readParameters() {
   pnh_.param("prefetch_margin", prefetchMargin_, 0.05);
   pnh_.param("quick_start", quickStart_, true);
   pnh_.param("grid_on_demand", gridOnDemand_, true);
+  pnh_.param("detectors_on_demand", detectorsOnDemand_, false);
   pnh_.param("pose_queue_size", poseQueueSize_, 100);
   std::string mode, fast;
   pnh_.param<std::string>("detection_mode", mode, "exact");
@@ -147,72 +148,89 @@ void SceneHapticDetector::readParameters() {
 // Levels: prepared by the worker (disk cache or build), swapped in by the pose thread.
 
 void SceneHapticDetector::levelWorker() {
-  // Stage 1 (quick start): hierarchy detectors, cheap to construct once the spheres are read or built.
-  // Stage 2: the configured fast level (grid: O(1) queries) replaces them, object by object: every
-  // object in turn, or (~grid_on_demand) only objects the pointer comes near, when it does.
-  std::vector<FastLevel> stages;
-  if (quickStart_ && fastLevel_ != FastLevel::Hierarchy) stages.push_back(FastLevel::Hierarchy);
-  stages.push_back(fastLevel_);
+  // Per object, step by step: its sphere set (disk cache, or a build), a hierarchy detector (cheap to
+  // construct: ~quick_start), then the configured fast level (grid: O(1) queries, slower to
+  // construct). Objects the pointer comes near (wanted_) advance first; every object gets its set at
+  // start-up; detectors of objects nobody approaches wait with ~detectors_on_demand, grids with
+  // ~grid_on_demand. Until an object has a detector, the pose thread answers it by brute force.
+  enum Step : std::uint8_t { kNone, kSet, kQuick, kFinal };
   const std::size_t n = objects_.size();
+  const bool quick = quickStart_ && fastLevel_ != FastLevel::Hierarchy;
+  std::vector<std::uint8_t> step(n, kNone);
   const auto start = std::chrono::steady_clock::now();
-  auto prepare = [&](std::size_t i, FastLevel fast, bool final) {
+  auto elapsedMs = [&] {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  };
+  auto name = [](FastLevel f) { return f == FastLevel::Grid ? "grid" : f == FastLevel::Hierarchy ? "hierarchy" : "flat"; };
+  // May this object advance now without being asked for?
+  auto eager = [&](std::size_t i) {
+    if (step[i] == kNone) return true;  // sets for everyone: that is what the cache makes cheap
+    if (step[i] == kSet) return !detectorsOnDemand_;
+    return !gridOnDemand_ && !detectorsOnDemand_;
+  };
+  bool announced = false;
+  while (!stop_) {
+    std::size_t i = n;
+    for (std::size_t k = 0; k < n && i == n; ++k)
+      if (step[k] != kFinal && wanted_[k].load()) i = k;
+    for (std::size_t k = 0; k < n && i == n; ++k)
+      if (step[k] != kFinal && eager(k)) i = k;
+    if (i == n) {
+      if (!announced) {
+        announced = true;
+        std::size_t sets = 0, detectors = 0, finals = 0;
+        for (auto s : step) {
+          sets += s >= kSet;
+          detectors += s >= kQuick || (s == kFinal);
+          finals += s == kFinal;
+        }
+        ROS_INFO("scene_detector: %zu of %zu objects with their levels (%zu with a detector, %zu %s) %.0f ms after "
+                 "start-up; the rest when the pointer comes near (cache %s: %lu hits, %lu built, %lu rejected)",
+                 sets, n, detectors, finals, name(fastLevel_), elapsedMs(), assets_->cache()->directory().c_str(),
+                 static_cast<unsigned long>(assets_->cache()->hits()),
+                 static_cast<unsigned long>(assets_->cache()->misses()),
+                 static_cast<unsigned long>(assets_->cache()->rejected()));
+      }
+      if (std::all_of(step.begin(), step.end(), [](std::uint8_t s) { return s == kFinal; })) return;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));  // wait for the pointer to ask
+      continue;
+    }
+    announced = false;
     const auto& object = objects_[i];
+    const auto mesh = scene_.mesh(static_cast<std::uint32_t>(i));
     try {
       SceneAssets::LevelInfo info;
-      auto level = assets_->level(scene_.mesh(static_cast<std::uint32_t>(i)), object.config.distance, fast, &info);
+      if (step[i] == kNone) {
+        auto set = assets_->spheres(mesh, object.config.distance, &info);
+        step[i] = kSet;
+        if (!info.cache.problem.empty()) {
+          ROS_WARN("scene_detector: '%s': %s", object.config.name.c_str(), info.cache.problem.c_str());
+        }
+        ROS_INFO("scene_detector: '%s' spheres d = %g: %zu, %s%s (%.0f ms)", object.config.name.c_str(),
+                 object.config.distance, set->size(), info.shared ? "shared" : toString(info.cache.source),
+                 info.shared ? "" : (" " + info.cache.path).c_str(), info.cache.ms);
+        continue;
+      }
+      const FastLevel fast = step[i] == kSet && quick ? FastLevel::Hierarchy : fastLevel_;
+      auto level = assets_->level(mesh, object.config.distance, fast, &info);
+      step[i] = fast == fastLevel_ ? kFinal : kQuick;
       {
         std::lock_guard<std::mutex> lock(readyMutex_);
         ready_[i] = level;
       }
       readyPending_ = true;
       levelsDirty_ = true;
-      if (!info.cache.problem.empty()) {
-        ROS_WARN("scene_detector: '%s': %s", object.config.name.c_str(), info.cache.problem.c_str());
-      }
-      ROS_INFO("scene_detector: '%s' level d = %g (%s) ready: %zu spheres, %s%s (%.0f ms + %.0f ms detector)",
-               object.config.name.c_str(), object.config.distance,
-               fast == FastLevel::Grid ? "grid" : fast == FastLevel::Hierarchy ? "hierarchy" : "flat",
-               level->spheres()->size(), info.shared ? "shared" : toString(info.cache.source),
-               info.shared ? "" : (" " + info.cache.path).c_str(), info.cache.ms, info.detectorMs);
+      ROS_INFO("scene_detector: '%s' %s detector ready (%.0f ms)%s", object.config.name.c_str(), name(fast),
+               info.detectorMs, wanted_[i].load() ? ", asked for by the pointer" : "");
     } catch (const std::exception& e) {
       ROS_ERROR("scene_detector: '%s': cannot prepare level d = %g: %s; answering it by brute force",
                 object.config.name.c_str(), object.config.distance, e.what());
+      step[i] = kFinal;  // do not retry in a loop; the object stays on brute force
     }
-    if (final) {
+    if (step[i] == kFinal) {
       wanted_[i] = false;
       levelsReady_.fetch_add(1);
     }
-  };
-  auto report = [&](FastLevel fast, const char* what) {
-    ROS_INFO("scene_detector: %s levels of %zu objects %s %.0f ms after start-up (cache %s: %lu hits, %lu built, "
-             "%lu rejected)",
-             fast == FastLevel::Grid ? "grid" : fast == FastLevel::Hierarchy ? "hierarchy" : "flat", n, what,
-             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
-             assets_->cache()->directory().c_str(), static_cast<unsigned long>(assets_->cache()->hits()),
-             static_cast<unsigned long>(assets_->cache()->misses()),
-             static_cast<unsigned long>(assets_->cache()->rejected()));
-  };
-  for (std::size_t stage = 0; stage < stages.size() && !stop_; ++stage) {
-    const bool final = stage + 1 == stages.size();
-    const bool onDemand = final && stage > 0 && gridOnDemand_;
-    if (onDemand) report(stages[stage], "prepared when the pointer comes near; all answering");
-    std::vector<char> done(n, 0);
-    for (std::size_t count = 0; count < n && !stop_;) {
-      // The object the stylus asks for (near the pointer, final level missing) first, else list order.
-      std::size_t i = n;
-      for (std::size_t k = 0; k < n && i == n; ++k)
-        if (!done[k] && wanted_[k].load()) i = k;
-      for (std::size_t k = 0; k < n && i == n && !onDemand; ++k)
-        if (!done[k]) i = k;
-      if (i == n) {  // on demand and nobody near: wait for the pointer
-        std::this_thread::sleep_for(std::chrono::milliseconds(20));
-        continue;
-      }
-      done[i] = 1;
-      ++count;
-      prepare(i, stages[stage], final);
-    }
-    if (!stop_) report(stages[stage], "ready");
   }
 }
 

@@ -62,6 +62,14 @@ class SceneAssets {
   std::shared_ptr<const ClodDetector> level(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
                                             FastLevel fastLevel, LevelInfo* info = nullptr);
 
+  /**
+   * \brief Only the sphere set of (mesh, d), from memory, the disk cache or a build: what a restart
+   * reads back cheaply. A detector (level()) built later shares it.
+   * \throws as level().
+   */
+  std::shared_ptr<const ClodSphereSet> spheres(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
+                                               LevelInfo* info = nullptr);
+
   /** \brief The fast level of level(mesh, d). */
   FastLevel fastLevel() const { return fastLevel_; }
 
@@ -75,6 +83,8 @@ class SceneAssets {
 
  private:
   std::uint64_t hashLocked(const std::shared_ptr<const TriangleMesh>& mesh);
+  std::shared_ptr<const ClodSphereSet> spheresLocked(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
+                                                     LevelInfo& out);
 
   std::shared_ptr<SphereSetCache> cache_;
   FastLevel fastLevel_;

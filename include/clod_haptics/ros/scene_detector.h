@@ -28,7 +28,7 @@ namespace clod_haptics {
  * Parameters: ~scene (a scene file loaded with rosparam, see SceneConfig), ~pose_topic,
  * ~pointer_radius, ~detection_mode, ~stiffness, ~max_force, ~cache_dir, ~fast_level, ~marker_rate,
  * ~marker_objects (names to draw; empty: all), ~pose_queue_size, ~static_retry (s), ~quick_start,
- * ~grid_on_demand, ~prefetch_margin (m).
+ * ~grid_on_demand, ~detectors_on_demand, ~prefetch_margin (m).
  *
  * Threads: poses arrive on the caller's node handle (the haptic path: one tf2 lookup for the pose's
  * frame when it differs from the scene frame, one per moving object, then one allocation-free
@@ -38,7 +38,9 @@ namespace clod_haptics {
  * force). Objects the pointer comes near (~prefetch_margin) are prepared first. With ~quick_start
  * and the grid fast level, every object first gets a hierarchy detector (cheap to construct from
  * the cached spheres), then the grid one replaces it in the background: for every object, or with
- * ~grid_on_demand only for the objects the pointer comes within ~prefetch_margin of. Markers run on a private display queue, only while subscribed and only when changed.
+ * ~grid_on_demand only for the objects the pointer comes within ~prefetch_margin of. Every object's
+ * sphere set is read (or built) at start-up; ~detectors_on_demand defers even the hierarchy
+ * detectors of objects the pointer has not come near. Markers run on a private display queue, only while subscribed and only when changed.
  */
 class SceneHapticDetector {
  public:
@@ -101,6 +103,7 @@ class SceneHapticDetector {
   double prefetchMargin_ = 0.05;
   bool quickStart_ = true;
   bool gridOnDemand_ = true;
+  bool detectorsOnDemand_ = false;
   int poseQueueSize_ = 100;
 
   // Core.
