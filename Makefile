@@ -64,6 +64,18 @@ bench: deps deps-bench
 	@python3 $(ROOT)/bench/report.py $(BENCH_OUT)
 	@echo "== report: $(BENCH_OUT)/report.md =="
 
+# Scene benchmark (issue 7): 50 objects, 1.9 M triangles; start-up from the level cache against
+# building, query cost near one object in the scene against that object alone. Core only, no peers.
+SCENE_BENCH_WS := $(BUILD)/scene_bench_ws
+.PHONY: scene-bench
+scene-bench: deps
+	@mkdir -p $(SCENE_BENCH_WS)/src $(ROS_HOME) && ln -sfn $(ROOT) $(SCENE_BENCH_WS)/src/clod_haptics
+	@cd $(SCENE_BENCH_WS) && catkin_make scene_bench -j$(JOBS) --cmake-args -DCMAKE_BUILD_TYPE=Release \
+	  -DCLOD_BUILD_SCENE_BENCH=ON -DCATKIN_ENABLE_TESTING=OFF > $(BUILD)/scene_bench_build.log 2>&1 || \
+	  { tail -40 $(BUILD)/scene_bench_build.log; exit 1; }
+	@$(SCENE_BENCH_WS)/devel/lib/clod_haptics/scene_bench --shared $(BENCH_SHARED_DIR) $(SCENE_BENCH_ARGS) 2>&1 | \
+	  tee $(BUILD)/scene_bench_run.log; exit $${PIPESTATUS[0]}
+
 $(WS)/src/clod_haptics:
 	@mkdir -p $(WS)/src $(ROS_HOME)
 	@ln -sfn $(ROOT) $(WS)/src/clod_haptics
