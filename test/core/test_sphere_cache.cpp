@@ -322,8 +322,12 @@ TEST(SceneAssets, SharesMeshesAndLevelsAndRestartsFromTheCache) {
   SceneAssets restarted(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Grid, 0.002);
   auto mesh = restarted.mesh(torusPath());
   SceneAssets::LevelInfo info;
-  auto level = restarted.level(mesh, 0.003, &info);
+  auto set = restarted.spheres(mesh, 0.003, &info);  // what a restarted node reads first
   EXPECT_EQ(info.cache.source, CacheSource::Hit);
+  EXPECT_FALSE(info.shared);
+  auto level = restarted.level(mesh, 0.003, &info);
+  EXPECT_TRUE(info.shared);
+  EXPECT_EQ(level->spheres().get(), set.get());
   EXPECT_EQ(restarted.placements(), 0u) << "a restart must not run the placement again";
   expectSameSet(*first->spheres(), *level->spheres());
 }
