@@ -662,7 +662,12 @@ int main(int argc, char** argv) {
   const auto start = std::chrono::steady_clock::now();
 
   std::vector<std::string> meshes;
-  for (const auto& entry : fs::directory_iterator(fs::path(s.shared) / "data" / "meshes"))
+  const fs::path meshDir = fs::path(s.shared) / "data" / "meshes";
+  if (!fs::is_directory(meshDir)) {
+    std::cerr << "clod_bench: no mesh directory " << meshDir << " (set --shared, or CLOD_SHARED_DIR for make bench)\n";
+    return 2;
+  }
+  for (const auto& entry : fs::directory_iterator(meshDir))
     if (entry.path().extension() == ".off" && (s.meshes.empty() || s.meshes.count(entry.path().filename().string())))
       meshes.push_back(entry.path().string());
   std::sort(meshes.begin(), meshes.end(), [](const std::string& a, const std::string& b) {
