@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -149,6 +151,17 @@ int loadInChild(const std::string& path) {
 TEST(MeshLoaderDeathTest, FaceIndexOutOfRangeAsciiPly) {
   ::testing::FLAGS_gtest_death_test_style = "threadsafe";
   EXPECT_EXIT(std::exit(loadInChild(testData("bad_index.ply"))), ::testing::ExitedWithCode(0), "");
+}
+// Regression (fuzz/fuzz_mesh_load): a PLY with a malformed header ("element vxt er3e6", "end_heaedr")
+// sent assimp's PLY reader into an endless seek loop. Bounded here by an alarm in the child.
+TEST(MeshLoaderDeathTest, MalformedPlyHeaderDoesNotHang) {
+  ::testing::FLAGS_gtest_death_test_style = "threadsafe";
+  EXPECT_EXIT(
+      {
+        ::alarm(20);
+        std::exit(loadInChild(testData("hang_malformed_header.ply")));
+      },
+      ::testing::ExitedWithCode(0), "");
 }
 TEST(MeshLoaderDeathTest, FaceIndexOutOfRangeBinaryPly) {
   ::testing::FLAGS_gtest_death_test_style = "threadsafe";

@@ -502,6 +502,33 @@ TEST(Property, RandomMeshesAtRandomScaleAndOffset) {
   EXPECT_GT(stats.contacts, stats.probes / 10);
 }
 
+// Regression (fuzz/fuzz_query): a finite but huge probe and radius. r * r and |p - q|^2 both overflow to
+// inf, and inf <= inf reported a contact at distance inf (depth -inf): an infinite force. Finite
+// inputs must give either no contact or finite fields, in the detector and in the reference alike.
+TEST(Property, HugeFiniteInputsGiveFiniteAnswersOrNone) {
+  const auto mesh = std::make_shared<const TriangleMesh>(cubeMesh());
+  const ClodBuilder builder(mesh);
+  const Vec3 p(2.4987006400419e-310, 7.290346720383824e-304, -5.486124089170283e+303);
+  const double r = 4.737909208752573e+226;
+  auto finiteOrNone = [](const ContactResult& c) {
+    return !c.contact || (c.point.allFinite() && c.normal.allFinite() && std::isfinite(c.distance) &&
+                          std::isfinite(c.depth));
+  };
+  EXPECT_TRUE(finiteOrNone(bruteForceQuery(*mesh, p, r))) << "bruteForceQuery";
+  for (double d : {0.0, 0.3})
+    for (FastLevel fast : {FastLevel::Grid, FastLevel::Hierarchy, FastLevel::Flat}) {
+      const ClodDetector det(mesh, std::make_shared<const ClodSphereSet>(builder.build(d)), fast);
+      for (DetectionMode mode : {DetectionMode::Exact, DetectionMode::Paper, DetectionMode::Spheres}) {
+        ContactResult c;
+        det.query(p, r, mode, c);
+        EXPECT_TRUE(finiteOrNone(c)) << "fast " << int(fast) << " mode " << toString(mode) << " d=" << d
+                                     << ": contact with distance " << c.distance << " depth " << c.depth;
+        det.query(Vec3(0.5, 0.5, 1e200), 1e180, mode, c);
+        EXPECT_TRUE(finiteOrNone(c)) << "p.z = 1e200, r = 1e180";
+      }
+    }
+}
+
 TEST(Property, RandomQueriesAreNeverNaN) {
   // Arbitrary (also huge and tiny) finite probes and radii on a real mesh: finite answers or none.
   const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
