@@ -147,6 +147,17 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, UnionFind& uf) {
       }
     }
   }
+  // Bounds of each cell's points: two cells whose bounds are d or more apart hold no close pair.
+  std::vector<Eigen::AlignedBox3d> cellBox(cells);
+  for (std::size_t c = 0; c < cells; ++c) {
+    cellBox[c].setEmpty();
+    for (std::size_t j = runStart[c]; j < runStart[c + 1]; ++j) cellBox[c].extend(points[sorted[j]]);
+  }
+  auto apart = [&](std::size_t a, std::size_t b) {
+    if (extreme) return false;  // no squared test there; the point tests decide
+    const Vec3 gap = (cellBox[a].min() - cellBox[b].max()).cwiseMax(cellBox[b].min() - cellBox[a].max()).cwiseMax(0.0);
+    return gap.squaredNorm() >= d2 * (1.0 + 1e-12);  // slack: the pair tests round on their own
+  };
   // Between cells: each unordered pair of neighbouring cells once (the lexicographically forward half).
   for (std::size_t c = 0; c < cells; ++c) {
     const CellKey k = runKey[c];
@@ -158,7 +169,7 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, UnionFind& uf) {
           if (run == nullptr) continue;
           const std::size_t c2 = *run - 1;
           const std::uint32_t repB = sorted[runStart[c2]];
-          if (uf.find(repA) == uf.find(repB)) continue;
+          if (apart(c, c2) || uf.find(repA) == uf.find(repB)) continue;
           bool linked = false;
           for (std::size_t a = runStart[c]; a < runStart[c + 1] && !linked; ++a) {
             if (loose[sorted[a]]) continue;

@@ -62,51 +62,66 @@ std::vector<PlacedSphere> PaperPlacement::place(const TriangleMesh& mesh, Placem
         if (normal.isZero(0.0)) continue;
         const Vec3 origin = mesh.centroid(t);
         const Vec3 dir = -normal;
-        // First pass, nearest first with pruning: a hit with dot < -0.99 (the first threshold) decides
-        // at once, and the nearest such hit is the answer, so farther nodes are skipped.
-        const double tau0 = kTau0;
-        double tMax = std::numeric_limits<double>::infinity();
-        double bestT = std::numeric_limits<double>::infinity();
-        std::uint32_t best = std::numeric_limits<std::uint32_t>::max();
+        // One nearest-first pass that skips every subtree unable to change the answer. With m the
+        // smallest dot seen so far and k its step, a subtree matters only if its normals can reach
+        // below tau_{k-1} (a lower step) or below tau_k nearer than the best hit at step k.
         double minDot = std::numeric_limits<double>::infinity();
-        // Hits seen by the first pass, kept so the relaxation rarely needs a second pass.
+        int k = -1;  // step of minDot; -1 before the first hit
+        double bestT = std::numeric_limits<double>::infinity();
         constexpr int kKeep = 64;
         Hit kept[kKeep];
         int seen = 0;
-        bvh.forEachRayHit(origin, dir, tMax, [&](std::uint32_t tri, double dist) {
-          if (tri == t || dist <= minT) return;
-          const double dot = mesh.normals[tri].dot(normal);
-          minDot = std::min(minDot, dot);
-          if (seen < kKeep) kept[seen] = {tri, dist, dot};
-          ++seen;
-          if (dot < tau0 && (dist < bestT || (dist == bestT && tri < best))) {
+        double tMax = std::numeric_limits<double>::infinity();
+        auto rebest = [&]() {
+          const double tau = kTau0 + kTauStep * k;
+          bestT = std::numeric_limits<double>::infinity();
+          for (int h = 0; h < std::min(seen, kKeep); ++h)
+            if (kept[h].dot < tau) bestT = std::min(bestT, kept[h].t);
+        };
+        bvh.forEachRayHit(
+            origin, dir, tMax,
+            [&](std::uint32_t tri, double dist) {
+              if (tri == t || dist <= minT) return;
+              const double dot = mesh.normals[tri].dot(normal);
+              if (seen < kKeep) kept[seen] = {tri, dist, dot};
+              ++seen;
+              if (dot < minDot) {
+                minDot = dot;
+                const int step = firstAdmittingStep(minDot);
+                if (step != k) {
+                  k = step;
+                  rebest();
+                  return;
+                }
+              }
+              if (k >= 0 && dot < kTau0 + kTauStep * k) bestT = std::min(bestT, dist);
+            },
+            [&](const TriangleBvh::Node& node, double entry) {
+              if (k < 0 || seen > kKeep) return true;  // nothing to compare with yet, or the buffer overflowed
+              const double lower = TriangleBvh::minDot(node, normal) - 1e-9;
+              if (k >= 1 && lower < kTau0 + kTauStep * (k - 1)) return true;
+              return lower < kTau0 + kTauStep * k && entry <= bestT;
+            });
+        if (seen == 0) continue;  // the ray escapes: no opposite triangle
+        std::uint32_t best = std::numeric_limits<std::uint32_t>::max();
+        const double tau = kTau0 + kTauStep * k;
+        bestT = std::numeric_limits<double>::infinity();
+        auto consider = [&](std::uint32_t tri, double dist, double dot) {
+          if (dot < tau && (dist < bestT || (dist == bestT && tri < best))) {
             bestT = dist;
             best = tri;
-            tMax = dist;  // nothing farther can win; ties at exactly dist are still reported
-            tMax = std::nextafter(tMax, std::numeric_limits<double>::infinity());
           }
-        });
-        int k = 0;
-        if (best == std::numeric_limits<std::uint32_t>::max()) {
-          // No hit under the first threshold (the pass saw every hit): relax to the first admitting step.
-          if (!std::isfinite(minDot)) continue;
-          k = firstAdmittingStep(minDot);
-          const double tau = kTau0 + kTauStep * k;
-          auto consider = [&](std::uint32_t tri, double dist, double dot) {
-            if (dot < tau && (dist < bestT || (dist == bestT && tri < best))) {
-              bestT = dist;
-              best = tri;
-            }
-          };
-          if (seen <= kKeep) {
-            for (int h = 0; h < seen; ++h) consider(kept[h].triangle, kept[h].t, kept[h].dot);
-          } else {
-            double all = std::numeric_limits<double>::infinity();
-            bvh.forEachRayHit(origin, dir, all, [&](std::uint32_t tri, double dist) {
-              if (tri == t || dist <= minT) return;
-              consider(tri, dist, mesh.normals[tri].dot(normal));
-            });
-          }
+        };
+        if (seen <= kKeep) {
+          for (int h = 0; h < seen; ++h) consider(kept[h].triangle, kept[h].t, kept[h].dot);
+        } else {
+          // More hits than the buffer holds (pruning was off after it overflowed, so minDot and k
+          // are over every hit): enumerate the hits again.
+          double all = std::numeric_limits<double>::infinity();
+          bvh.forEachRayHit(origin, dir, all, [&](std::uint32_t tri, double dist) {
+            if (tri == t || dist <= minT) return;
+            consider(tri, dist, mesh.normals[tri].dot(normal));
+          });
         }
         opposite[t] = best;
         steps[t] = static_cast<std::uint16_t>(std::min(k, 65535));

@@ -18,9 +18,26 @@ ClodBuilder::ClodBuilder(std::shared_ptr<const TriangleMesh> mesh, std::shared_p
                          std::shared_ptr<const Clustering> clustering)
     : mesh_(std::move(mesh)), clustering_(std::move(clustering)) {
   if (!mesh_ || mesh_->size() == 0) throw InvalidParameter("ClodBuilder needs a mesh with triangles");
-  placed_ = placement->place(*mesh_, &placementStats_);
-  placedCentres_.reserve(placed_.size());
-  for (const PlacedSphere& s : placed_) placedCentres_.push_back(s.centre);
+  {
+    const std::vector<PlacedSphere> placed = placement->place(*mesh_, &placementStats_);
+    centres_.reserve(placed.size());
+    wrapped_.reserve(placed.size());
+    for (const PlacedSphere& s : placed) {
+      centres_.push_back(s.centre);
+      wrapped_.push_back(s.triangle);
+    }
+  }  // the array of structs is freed here: flat arrays keep the peak memory per triangle low
+}
+
+std::vector<PlacedSphere> ClodBuilder::placed() const {
+  std::vector<PlacedSphere> out;
+  out.reserve(centres_.size());
+  for (std::size_t i = 0; i < centres_.size(); ++i) {
+    double r2 = 0.0;
+    for (int v = 0; v < 3; ++v) r2 = std::max(r2, (mesh_->vertex(wrapped_[i], v) - centres_[i]).squaredNorm());
+    out.push_back({centres_[i], std::sqrt(r2), wrapped_[i]});
+  }
+  return out;
 }
 
 ClodSphereSet ClodBuilder::build(double d) const {
@@ -28,7 +45,7 @@ ClodSphereSet ClodBuilder::build(double d) const {
   const auto start = std::chrono::steady_clock::now();
   const TriangleMesh& mesh = *mesh_;
   std::vector<std::uint32_t> labels;
-  const std::uint32_t k = clustering_->cluster(placedCentres_, d, labels);
+  const std::uint32_t k = clustering_->cluster(centres_, d, labels);
 
   ClodSphereSet set;
   set.meshName = mesh.name;
@@ -40,18 +57,18 @@ ClodSphereSet ClodBuilder::build(double d) const {
 
   // Mean of the member centres.
   std::vector<std::uint32_t> members(k, 0);
-  for (std::size_t i = 0; i < placed_.size(); ++i) {
-    set.centres[labels[i]] += placed_[i].centre;
+  for (std::size_t i = 0; i < centres_.size(); ++i) {
+    set.centres[labels[i]] += centres_[i];
     ++members[labels[i]];
   }
   for (std::uint32_t c = 0; c < k; ++c) set.centres[c] /= static_cast<double>(members[c]);
 
   // Triangle lists, grouped by cluster (counting sort), then sorted and made unique per cluster.
-  for (std::size_t i = 0; i < placed_.size(); ++i) ++set.offsets[labels[i] + 1];
+  for (std::size_t i = 0; i < centres_.size(); ++i) ++set.offsets[labels[i] + 1];
   for (std::uint32_t c = 0; c < k; ++c) set.offsets[c + 1] += set.offsets[c];
   std::vector<std::uint32_t> fill(set.offsets.begin(), set.offsets.end() - 1);
-  std::vector<std::uint32_t> lists(placed_.size());
-  for (std::size_t i = 0; i < placed_.size(); ++i) lists[fill[labels[i]]++] = placed_[i].triangle;
+  std::vector<std::uint32_t> lists(centres_.size());
+  for (std::size_t i = 0; i < centres_.size(); ++i) lists[fill[labels[i]]++] = wrapped_[i];
   set.triangles.reserve(lists.size());
   std::vector<std::uint32_t> offsets(k + 1, 0);
   for (std::uint32_t c = 0; c < k; ++c) {
@@ -73,7 +90,7 @@ ClodSphereSet ClodBuilder::build(double d) const {
 
   BuildStats& st = set.stats;
   st.triangles = mesh.size();
-  st.centres = placed_.size();
+  st.centres = centres_.size();
   st.spheres = k;
   st.unpaired = placementStats_.unpaired;
   st.degenerate = placementStats_.degenerate;

@@ -14,16 +14,20 @@ struct Build {
   int leafSize;
 
   std::uint32_t build(std::uint32_t begin, std::uint32_t end) {
-    Eigen::AlignedBox3d box, cbox;
+    Eigen::AlignedBox3d box, cbox, nbox;
     for (std::uint32_t i = begin; i < end; ++i) {
       box.extend(boxes[order[i]]);
       cbox.extend(centroids[order[i]]);
+      nbox.extend(mesh.normals[order[i]]);
     }
     const std::uint32_t self = static_cast<std::uint32_t>(nodes.size());
     TriangleBvh::Node node{};
     for (int k = 0; k < 3; ++k) {
       node.lo[k] = box.min()[k];
       node.hi[k] = box.max()[k];
+      // Outward by more than float rounding: bounds stay bounds after the cast.
+      node.normalLo[k] = static_cast<float>(nbox.min()[k] - 1e-6);
+      node.normalHi[k] = static_cast<float>(nbox.max()[k] + 1e-6);
     }
     nodes.push_back(node);
     if (end - begin <= static_cast<std::uint32_t>(leafSize)) {

@@ -71,16 +71,18 @@ class ClodBuilder {
 
   /** \brief The mesh. */
   const std::shared_ptr<const TriangleMesh>& mesh() const { return mesh_; }
-  /** \brief The spheres before clustering. */
-  const std::vector<PlacedSphere>& placed() const { return placed_; }
+  /** \brief The spheres before clustering (assembled on demand: the builder keeps only flat arrays). */
+  std::vector<PlacedSphere> placed() const;
+  /** \brief Number of sphere centres before clustering. */
+  std::size_t centres() const { return centres_.size(); }
   /** \brief Statistics of the placement. */
   const PlacementStats& placementStats() const { return placementStats_; }
 
  private:
   std::shared_ptr<const TriangleMesh> mesh_;
   std::shared_ptr<const Clustering> clustering_;
-  std::vector<PlacedSphere> placed_;
-  std::vector<Vec3> placedCentres_;
+  std::vector<Vec3> centres_;                // placed centres, the points the clustering sees
+  std::vector<std::uint32_t> wrapped_;       // the triangle each placed sphere wraps
   PlacementStats placementStats_;
 };
 

@@ -1,5 +1,7 @@
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -20,6 +22,8 @@ class TriangleBvh {
   struct Node {
     double lo[3];
     double hi[3];
+    float normalLo[3];    ///< component-wise bounds of the unit face normals below (rounded outward)
+    float normalHi[3];
     std::uint32_t first;  ///< leaf: first entry in order(); inner: index of the right child
     std::uint32_t count;  ///< leaf: number of triangles; inner: 0
   };
@@ -33,7 +37,23 @@ class TriangleBvh {
    * nearer children are visited first. Allocates nothing.
    */
   template <class Hit>
-  void forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMax, Hit&& hit) const;
+  void forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMax, Hit&& hit) const {
+    forEachRayHit(origin, dir, tMax, hit, [](const Node&, double) { return true; });
+  }
+
+  /**
+   * \brief The same, visiting a node only when keep(node, tEntry) is true (tEntry: where the ray
+   * enters its box), so a caller can skip subtrees that cannot change its answer.
+   */
+  template <class Hit, class Keep>
+  void forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMax, Hit&& hit, Keep&& keep) const;
+
+  /** \brief Lower bound of n . m over the unit normals n of a node's triangles. */
+  static double minDot(const Node& node, const Vec3& m) {
+    double s = 0.0;
+    for (int k = 0; k < 3; ++k) s += std::min(m[k] * node.normalLo[k], m[k] * node.normalHi[k]);
+    return s;
+  }
 
   /** \brief The nodes, root first. */
   const std::vector<Node>& nodes() const { return nodes_; }
@@ -46,25 +66,28 @@ class TriangleBvh {
   std::vector<std::uint32_t> order_;
 };
 
-template <class Hit>
-void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMax, Hit&& hit) const {
+template <class Hit, class Keep>
+void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMax, Hit&& hit, Keep&& keep) const {
   if (nodes_.empty()) return;
+  // A zero direction component becomes a tiny one of the same sign: the slab products stay finite or
+  // +-inf, never 0 * inf = NaN, so the test needs no special cases.
   double inv[3];
-  for (int k = 0; k < 3; ++k) inv[k] = 1.0 / dir[k];  // +-inf for a zero component is fine for the slab test
-  // Entry distance of the ray into a node's box, or +inf when it misses within (0, tMax).
+  bool negative[3];
+  for (int k = 0; k < 3; ++k) {
+    const double d = dir[k] != 0.0 ? dir[k] : std::copysign(1e-300, dir[k]);
+    inv[k] = 1.0 / d;
+    negative[k] = inv[k] < 0.0;
+  }
+  // Entry distance of the ray into a node's box, or 1e308 when it misses within (0, tMax).
   auto enter = [&](const Node& node) {
     double t0 = 0.0, t1 = tMax;
     for (int k = 0; k < 3; ++k) {
-      double ta = (node.lo[k] - origin[k]) * inv[k];
-      double tb = (node.hi[k] - origin[k]) * inv[k];
-      if (ta > tb) std::swap(ta, tb);
-      if (ta != ta) ta = -1e300;  // 0 * inf: origin on the slab plane with a parallel ray
-      if (tb != tb) tb = 1e300;
-      t0 = ta > t0 ? ta : t0;
-      t1 = tb < t1 ? tb : t1;
-      if (t0 > t1) return 1e308;
+      const double near = ((negative[k] ? node.hi[k] : node.lo[k]) - origin[k]) * inv[k];
+      const double far = ((negative[k] ? node.lo[k] : node.hi[k]) - origin[k]) * inv[k];
+      t0 = near > t0 ? near : t0;
+      t1 = far < t1 ? far : t1;
     }
-    return t0;
+    return t0 <= t1 ? t0 : 1e308;
   };
   struct Item {
     std::uint32_t node;
@@ -77,6 +100,7 @@ void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMa
     const Item item = stack[--top];
     if (item.t > tMax) continue;
     const Node& node = nodes_[item.node];
+    if (!keep(node, item.t)) continue;
     if (node.count > 0) {
       for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
         const std::uint32_t tri = order_[i];
