@@ -260,7 +260,7 @@ void ClodDetector::forEachHitSphere(double px, double py, double pz, const doubl
 void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
                          QueryCache* cache) const noexcept {
   out = ContactResult{};
-  if (!p.allFinite() || !std::isfinite(r) || r < 0.0) return;
+  if (!p.allFinite() || !std::isfinite(r) || r < 0.0 || r > kMaxRadius) return;
   Best best;
   best.d2 = r * r;
   best.reach = r;
@@ -319,7 +319,7 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
 }
 
 std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcept {
-  if (!p.allFinite() || !std::isfinite(r) || r < 0.0) return 0;
+  if (!p.allFinite() || !std::isfinite(r) || r < 0.0 || r > kMaxRadius) return 0;
   if (!grid_.empty() && r <= grid_.radius()) {
     const CellGrid::Cell* cell = grid_.find(grid_.keyOf(p));
     return cell ? cell->spheres : 0;
@@ -333,7 +333,7 @@ std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcep
 
 void ClodDetector::hitSpheres(const Vec3& p, double r, std::vector<std::uint32_t>& out) const {
   out.clear();
-  if (!p.allFinite() || !std::isfinite(r) || r < 0.0) return;
+  if (!p.allFinite() || !std::isfinite(r) || r < 0.0 || r > kMaxRadius) return;
   const double reach = r;
   forEachHitSphere(p.x(), p.y(), p.z(), reach, false, [&](std::uint32_t i) { out.push_back(i); });
   std::sort(out.begin(), out.end());

@@ -3,7 +3,9 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <cctype>
 #include <fstream>
+#include <sstream>
 #include <unordered_map>
 
 #include <assimp/Importer.hpp>
@@ -66,6 +68,59 @@ void collect(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent
     collect(scene, node->mChildren[c], transform, vertices, triangles, ids, nonFinite, badIndex);
 }
 
+// assimp 5.2's PLY reader can loop forever on a malformed header, so the header is checked first:
+// "ply", a format line, element lines with a count, property lines and end_header, within 64 KiB.
+// Returns an empty string when it is well formed, or why it is not.
+std::string plyHeaderProblem(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  std::size_t read = 0, lineNo = 0;
+  bool format = false;
+  while (std::getline(in, line)) {
+    read += line.size() + 1;
+    ++lineNo;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream words(line);
+    std::string word;
+    words >> word;
+    if (lineNo == 1) {
+      if (word != "ply") return "first line is not 'ply'";
+      continue;
+    }
+    if (word == "end_header") return format ? "" : "no format line before end_header";
+    if (word == "comment" || word == "obj_info" || word.empty()) {
+    } else if (word == "format") {
+      std::string kind, version;
+      words >> kind >> version;
+      if ((kind != "ascii" && kind != "binary_little_endian" && kind != "binary_big_endian") || version.empty())
+        return "line " + std::to_string(lineNo) + ": unknown format '" + line + "'";
+      format = true;
+    } else if (word == "element") {
+      std::string name, count;
+      words >> name >> count;
+      if (name.empty() || count.empty() || count.find_first_not_of("0123456789") != std::string::npos)
+        return "line " + std::to_string(lineNo) + ": malformed element line '" + line + "'";
+    } else if (word == "property") {
+      std::string type, name;
+      words >> type >> name;
+      if (type.empty() || name.empty()) return "line " + std::to_string(lineNo) + ": malformed property line";
+    } else {
+      return "line " + std::to_string(lineNo) + ": unexpected '" + word + "' in the header";
+    }
+    if (read > 65536) break;
+  }
+  return "no end_header within the first 64 KiB";
+}
+
+bool looksLikePly(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[3] = {0, 0, 0};
+  in.read(magic, 3);
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".ply" || (in.gcount() == 3 && magic[0] == 'p' && magic[1] == 'l' && magic[2] == 'y');
+}
+
 }  // namespace
 
 double signedVolume(const TriangleMesh& mesh) {
@@ -108,6 +163,11 @@ TriangleMesh loadMesh(const std::string& path, const MeshLoadOptions& options) {
   if (!std::filesystem::exists(path, ec)) throw MeshLoadError(path, "no such file");
   if (std::filesystem::is_directory(path, ec)) throw MeshLoadError(path, "is a directory, not a mesh file");
   if (!std::ifstream(path).good()) throw MeshLoadError(path, "file cannot be opened for reading");
+
+  if (looksLikePly(path)) {
+    const std::string problem = plyHeaderProblem(path);
+    if (!problem.empty()) throw MeshLoadError(path, "malformed PLY header: " + problem);
+  }
 
   Assimp::Importer importer;
   // Join only exact duplicates ourselves (assimp's joining also compares normals and UVs, so an STL's

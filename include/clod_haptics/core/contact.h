@@ -6,6 +6,12 @@
 
 namespace clod_haptics {
 
+/**
+ * \brief Largest pointer radius a query accepts: above it r * r overflows (or nearly), so squared
+ * distances could compare inf <= inf. A larger radius is invalid input and answers no contact.
+ */
+constexpr double kMaxRadius = 1e150;
+
 /** \brief The precise level of the two-level detection (paper section 3.3). */
 enum class DetectionMode : std::uint8_t {
   Exact,    ///< closest point on each candidate triangle, faces, edges and vertices: no contact missed

@@ -54,7 +54,7 @@ class ClodDetector {
 
   /**
    * \brief Answers whether the pointer (centre p, radius r) touches the mesh, and where.
-   * A non-finite p or r, or a negative r, answers no contact. cache (optional) carries temporal
+   * A non-finite p or r, a negative r or one above kMaxRadius answers no contact. cache (optional) carries temporal
    * coherence between the queries of one stream.
    */
   void query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
