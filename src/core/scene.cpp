@@ -1,5 +1,6 @@
 #include "clod_haptics/core/scene.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "clod_haptics/core/brute_force.h"
