@@ -3,8 +3,11 @@
 // knows it is (static offsets, a static tf2 frame, and a frame the test itself moves between poses).
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
+#include <array>
 #include <atomic>
+#include <cstdio>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -391,6 +394,55 @@ TEST_F(SceneDetectorTest, MarkersOnceForMeshesAndOnlyOnChange) {
   EXPECT_EQ(count("scene_mesh", -1, before), 0u);
   EXPECT_EQ(count("pointer", -1, before), 0u);
   EXPECT_EQ(count("scene_mesh", -1), meshes_.size()) << "meshes republished without a new subscriber";
+}
+
+/** Runs the scene_detector binary with a time limit; returns its exit code and output. */
+std::pair<int, std::string> runSceneDetector(const std::string& name) {
+  FILE* pipe = popen(("timeout 60 " + std::string(CLOD_SCENE_DETECTOR_PATH) + " __name:=" + name + " 2>&1").c_str(), "r");
+  if (!pipe) return {-1, ""};
+  std::string output;
+  std::array<char, 512> buffer;
+  while (fgets(buffer.data(), buffer.size(), pipe)) output += buffer.data();
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+/** A bad scene makes the node log a clear ERROR naming the problem and exit non-zero (not hang or crash). */
+void expectCleanFailure(const std::string& name, const std::string& mention) {
+  const auto [code, output] = runSceneDetector(name);
+  EXPECT_NE(code, 0) << output;
+  EXPECT_NE(code, 124) << "hung instead of exiting: " << output;
+  EXPECT_NE(code, -1) << "crashed: " << output;
+  EXPECT_NE(output.find("ERROR"), std::string::npos) << output;
+  EXPECT_NE(output.find(mention), std::string::npos) << "the error should mention '" << mention << "': " << output;
+}
+
+XmlRpc::XmlRpcValue sceneWith(const XmlRpc::XmlRpcValue& object) {
+  XmlRpc::XmlRpcValue scene, objects;
+  scene["frame_id"] = std::string("world");
+  objects.setSize(1);
+  objects[0] = object;
+  scene["objects"] = objects;
+  return scene;
+}
+
+TEST(SceneDetectorBadScenes, ExitWithAClearError) {
+  expectCleanFailure("scene_none", "scene_none/scene");  // no ~scene at all
+  XmlRpc::XmlRpcValue noMesh;
+  noMesh["name"] = std::string("lonely");
+  ros::param::set("/scene_no_mesh/scene", sceneWith(noMesh));
+  expectCleanFailure("scene_no_mesh", "'lonely') has no 'mesh'");
+  XmlRpc::XmlRpcValue missing;
+  missing["name"] = std::string("ghost");
+  missing["mesh"] = std::string("/nonexistent/ghost.obj");
+  ros::param::set("/scene_missing_file/scene", sceneWith(missing));
+  expectCleanFailure("scene_missing_file", "/nonexistent/ghost.obj");
+  XmlRpc::XmlRpcValue badScale;
+  badScale["name"] = std::string("flat");
+  badScale["mesh"] = std::string("package://clod_haptics/data/meshes/torus.obj");
+  badScale["scale"] = 0.0;
+  ros::param::set("/scene_bad_scale/scene", sceneWith(badScale));
+  expectCleanFailure("scene_bad_scale", "scale must be positive");
 }
 
 }  // namespace
