@@ -81,6 +81,21 @@ class CellTable {
   std::size_t mask_ = 0;
 };
 
+// The domain check both strategies share; sizes labels and returns the number of points.
+std::size_t prepare(const std::vector<Vec3>& points, double d, std::vector<std::uint32_t>& labels) {
+  if (!std::isfinite(d) || d < 0.0)
+    throw InvalidParameter("clustering distance must be finite and >= 0, got " + std::to_string(d));
+  labels.assign(points.size(), 0);
+  return points.size();
+}
+
+// Integer cell of p for cells of side cell anchored at origin.
+CellKey cellOf(const Vec3& p, const Vec3& origin, double cell) {
+  const Vec3 q = (p - origin) / cell;
+  return {static_cast<std::int64_t>(std::floor(q.x())), static_cast<std::int64_t>(std::floor(q.y())),
+          static_cast<std::int64_t>(std::floor(q.z()))};
+}
+
 // Unites every pair of points closer than d (Euclidean, strict), touching each pair of cells once.
 // Cells have side d / sqrt(3) (shrunk a little against rounding), so points of one cell are
 // normally all closer than d: each is linked to the cell's first point after an exact check, and
@@ -98,11 +113,7 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, UnionFind& uf) {
   const double cell = std::max(d / std::sqrt(3.0) * (1.0 - 1e-6), extent * 1e-12);
   const int reach = static_cast<int>(std::ceil(d / cell));  // 2 for the usual cell size
   std::vector<CellKey> keys(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 q = (points[i] - box.min()) / cell;
-    keys[i] = {static_cast<std::int64_t>(std::floor(q.x())), static_cast<std::int64_t>(std::floor(q.y())),
-               static_cast<std::int64_t>(std::floor(q.z()))};
-  }
+  for (std::size_t i = 0; i < n; ++i) keys[i] = cellOf(points[i], box.min(), cell);
   // Bucket the points by cell (expected O(n)): number the cells, count, prefix sum, fill.
   CellTable table(n);
   std::vector<std::size_t> runOf(n);
@@ -202,10 +213,7 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, UnionFind& uf) {
 
 std::uint32_t SingleLinkClustering::cluster(const std::vector<Vec3>& points, double d,
                                             std::vector<std::uint32_t>& labels) const {
-  if (!std::isfinite(d) || d < 0.0)
-    throw InvalidParameter("clustering distance must be finite and >= 0, got " + std::to_string(d));
-  const std::size_t n = points.size();
-  labels.assign(n, 0);
+  const std::size_t n = prepare(points, d, labels);
   if (n == 0) return 0;
   UnionFind uf(n);
   if (d > 0.0) linkCloserThan(points, d, uf);
@@ -222,10 +230,7 @@ std::uint32_t SingleLinkClustering::cluster(const std::vector<Vec3>& points, dou
 
 std::uint32_t CubeClustering::cluster(const std::vector<Vec3>& points, double d,
                                       std::vector<std::uint32_t>& labels) const {
-  if (!std::isfinite(d) || d < 0.0)
-    throw InvalidParameter("clustering distance must be finite and >= 0, got " + std::to_string(d));
-  const std::size_t n = points.size();
-  labels.assign(n, 0);
+  const std::size_t n = prepare(points, d, labels);
   if (n == 0) return 0;
   if (d == 0.0) {
     for (std::size_t i = 0; i < n; ++i) labels[i] = static_cast<std::uint32_t>(i);
@@ -239,10 +244,7 @@ std::uint32_t CubeClustering::cluster(const std::vector<Vec3>& points, double d,
   CellTable table(n);
   std::uint32_t count = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 q = (points[i] - box.min()) / cell;
-    const CellKey key{static_cast<std::int64_t>(std::floor(q.x())), static_cast<std::int64_t>(std::floor(q.y())),
-                      static_cast<std::int64_t>(std::floor(q.z()))};
-    std::size_t& run = table.run(table.insert(key));
+    std::size_t& run = table.run(table.insert(cellOf(points[i], box.min(), cell)));
     if (run == 0) run = ++count;  // 1-based: 0 marks a new cube
     labels[i] = static_cast<std::uint32_t>(run - 1);
   }
