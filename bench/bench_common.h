@@ -31,10 +31,12 @@ struct Answer {
 class Peer {
  public:
   virtual ~Peer() = default;
-  /** \brief Short name used in the CSV ("embree", "cgal", "fcl", "brute", "clod-hierarchy", ...). */
+  /** \brief Short name used in the CSV ("embree", "cgal", "fcl", "brute", "clod-grid", "clod-grid-cache", ...). */
   virtual std::string name() const = 0;
   /** \brief Answers for pointer centre p and radius r. */
   virtual void query(const Vec3& p, double r, Answer& out) const = 0;
+  /** \brief Called at the start of every timed run over a probe stream (a stateful peer resets its cache). */
+  virtual void startStream() const {}
   /** \brief Wall time of the structure's construction, milliseconds. */
   double buildMs = 0.0;
 };

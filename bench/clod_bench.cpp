@@ -30,10 +30,12 @@
 
 #include "bench_common.h"
 #include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/clustering.h"
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/probes.h"
+#include "clod_haptics/core/sphere_placement.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "tightness.h"
 
@@ -83,13 +85,19 @@ double secondsSince(std::chrono::steady_clock::time_point t0) {
 
 // ---------------------------------------------------------------------------------------------
 // Timing: every query timed alone with the time-stamp counter (fenced), the empty-region cost
-// subtracted; stops after `budget` seconds once at least minCount queries ran.
-template <class F>
-Timing timeEach(std::size_t n, double budget, std::size_t minCount, F&& f) {
+// subtracted; stops after `budget` seconds once at least minCount queries ran. Queries run in index
+// order (0, 1, 2, ...: a stream keeps its order, which a QueryCache relies on), after a warm-up over
+// the first 200; onStart runs between the warm-up and the timed run (e.g. to reset a stream's cache).
+struct NoStart {
+  void operator()() const {}
+};
+template <class F, class S = NoStart>
+Timing timeEach(std::size_t n, double budget, std::size_t minCount, F&& f, S&& onStart = S{}) {
   Timing t;
   t.ns.reserve(n);
   const std::size_t warm = std::min<std::size_t>(n, 200);
   for (std::size_t i = 0; i < warm; ++i) f(i);
+  onStart();
   const auto start = std::chrono::steady_clock::now();
   const std::uint64_t budgetTicks = static_cast<std::uint64_t>(budget * 1e9 / Clock::nsPerTick);
   const std::uint64_t begin = __rdtsc();
@@ -172,22 +180,30 @@ std::size_t disagreements(const std::vector<Answer>& answers, const std::vector<
 }
 
 // ---------------------------------------------------------------------------------------------
+// Our detector as a peer. With a cache (clod-grid-cache) it holds one QueryCache for the stream of
+// probes, reset by startStream() at the start of every timed run; the probes then come in their order.
 class ClodPeer : public Peer {
  public:
-  ClodPeer(const ClodDetector& detector, std::string name) : detector_(detector), name_(std::move(name)) {}
+  ClodPeer(const ClodDetector& detector, std::string name, bool useCache = false)
+      : detector_(detector), name_(std::move(name)), useCache_(useCache) {}
   std::string name() const override { return name_; }
   void query(const Vec3& p, double r, Answer& out) const override {
     ContactResult c;
-    detector_.query(p, r, DetectionMode::Exact, c);
+    detector_.query(p, r, DetectionMode::Exact, c, useCache_ ? &cache_ : nullptr);
     out.contact = c.contact;
     out.point = c.point;
     out.distance = c.distance;
     out.triangle = c.triangle;
   }
+  void startStream() const override { cache_ = QueryCache{}; }
+  /** \brief Queries since the last reset that reused the cached cell. */
+  std::uint64_t cacheHits() const { return cache_.hits; }
 
  private:
   const ClodDetector& detector_;
   std::string name_;
+  bool useCache_;
+  mutable QueryCache cache_;
 };
 
 class BrutePeer : public Peer {
@@ -212,7 +228,16 @@ struct ProbeSet {
   std::vector<ContactResult> ref;
 };
 
-const char* levelName(FastLevel l) { return l == FastLevel::Flat ? "flat" : "hierarchy"; }
+const char* levelName(FastLevel l) {
+  switch (l) {
+    case FastLevel::Flat:
+      return "flat";
+    case FastLevel::Grid:
+      return "grid";
+    default:
+      return "hierarchy";
+  }
+}
 
 // ---------------------------------------------------------------------------------------------
 // CSV files, opened once with their header.
@@ -238,6 +263,9 @@ struct GrowthPoint {
   std::size_t triangles = 0, spheres = 0;
   double placementMs = 0, buildMs = 0, detectorMs = 0, medianNs = 0, meanNs = 0;
   double peakBytes = 0, retainedBytes = 0, setBytes = 0;
+  double detectorHeapBytes = 0, detectorPeakBytes = 0;  // the grid detector alone: heap kept, RSS peak
+  double builderPeakBytes = 0;                          // peak of the builder phase alone (placement + build)
+  double hierarchyMs = 0, hierarchyHeapBytes = 0;       // a hierarchy detector on the same set, for comparison
   std::size_t mismatches = 0, checked = 0;
   bool peakReset = false;
 };
@@ -261,10 +289,32 @@ GrowthPoint growthChild(const std::string& path, int levels, const Settings& s) 
   t0 = std::chrono::steady_clock::now();
   auto set = std::make_shared<const ClodSphereSet>(builder->build(s.growthD));
   g.buildMs = secondsSince(t0) * 1e3;
+  // The detector (grid fast level, as a user builds it): its time, the heap it keeps (mallinfo2: live
+  // allocations, exact whatever pages malloc reuses) and the resident peak of its construction. The
+  // whole-set peak is the larger of the builder's peak and the detector's (same base).
+  const double builderPeak = static_cast<double>(peakRssBytes());
+  resetPeakRss();
+  const double rssBeforeDetector = static_cast<double>(currentRssBytes());
+  const struct mallinfo2 heap0 = mallinfo2();
   t0 = std::chrono::steady_clock::now();
-  ClodDetector detector(meshPtr, set, FastLevel::Hierarchy);
+  ClodDetector detector(meshPtr, set, FastLevel::Grid, s.r);
   g.detectorMs = secondsSince(t0) * 1e3;
-  g.peakBytes = static_cast<double>(peakRssBytes()) - base;
+  const struct mallinfo2 heap1 = mallinfo2();
+  g.detectorHeapBytes = (static_cast<double>(heap1.uordblks) + static_cast<double>(heap1.hblkhd)) -
+                        (static_cast<double>(heap0.uordblks) + static_cast<double>(heap0.hblkhd));
+  const double detectorPeak = static_cast<double>(peakRssBytes());
+  g.detectorPeakBytes = detectorPeak - rssBeforeDetector;
+  g.peakBytes = std::max(builderPeak, detectorPeak) - base;
+  g.builderPeakBytes = builderPeak - base;
+  {
+    const struct mallinfo2 h0 = mallinfo2();
+    t0 = std::chrono::steady_clock::now();
+    ClodDetector hierarchy(meshPtr, set, FastLevel::Hierarchy);
+    g.hierarchyMs = secondsSince(t0) * 1e3;
+    const struct mallinfo2 h1 = mallinfo2();
+    g.hierarchyHeapBytes = (static_cast<double>(h1.uordblks) + static_cast<double>(h1.hblkhd)) -
+                           (static_cast<double>(h0.uordblks) + static_cast<double>(h0.hblkhd));
+  }
   builder.reset();
   malloc_trim(0);
   g.retainedBytes = static_cast<double>(currentRssBytes()) - base;
@@ -385,12 +435,14 @@ void benchMesh(Run& run, const std::string& path) {
   ClodBuilder builder(meshPtr);
   const double placementMs = secondsSince(t0) * 1e3;
   std::map<double, std::shared_ptr<const ClodSphereSet>> levels;
+  std::map<double, double> buildMsOf;
   std::size_t previous = 0;
   for (double d : s.distances) {
     t0 = std::chrono::steady_clock::now();
     auto set = std::make_shared<const ClodSphereSet>(builder.build(d));
     const double buildMs = secondsSince(t0) * 1e3;
     levels[d] = set;
+    buildMsOf[d] = buildMs;
     const BuildStats& st = set->stats;
     const double step = previous ? 1.0 - static_cast<double>(set->size()) / previous : 0.0;
     const double total = st.centres ? 1.0 - static_cast<double>(set->size()) / st.centres : 0.0;
@@ -407,11 +459,11 @@ void benchMesh(Run& run, const std::string& path) {
       double distance;
     };
     for (double d : s.distances) {
-      // The hierarchy's answers, to check that the flat list answers the same on its probes.
+      // The hierarchy's answers, to check that the grid and the flat list answer the same on their probes.
       std::map<std::pair<int, std::string>, std::vector<Brief>> hierarchyAnswers;
-      for (FastLevel level : {FastLevel::Hierarchy, FastLevel::Flat}) {
+      for (FastLevel level : {FastLevel::Hierarchy, FastLevel::Grid, FastLevel::Flat}) {
         t0 = std::chrono::steady_clock::now();
-        ClodDetector detector(meshPtr, levels[d], level);
+        ClodDetector detector(meshPtr, levels[d], level, level == FastLevel::Grid ? s.r : 0.0);
         const double detectorMs = secondsSince(t0) * 1e3;
         for (DetectionMode mode : modes) {
           for (auto& set : sets) {
@@ -449,11 +501,25 @@ void benchMesh(Run& run, const std::string& path) {
   // Peers, in the same run on the same probes, alternating contenders over rounds.
   if (has(s, "peers")) {
     const auto set = levels.count(s.reportD) ? levels[s.reportD] : levels.begin()->second;
-    ClodDetector hierarchy(meshPtr, set, FastLevel::Hierarchy);
-    ClodDetector flat(meshPtr, set, FastLevel::Flat);
+    auto timed = [&](FastLevel level, double gridRadius, double& ms) {
+      const auto c0 = std::chrono::steady_clock::now();
+      auto det = std::make_unique<ClodDetector>(meshPtr, set, level, gridRadius);
+      ms = secondsSince(c0) * 1e3;
+      return det;
+    };
+    double gridMs = 0, hierarchyMs = 0, flatMs = 0;
+    const auto grid = timed(FastLevel::Grid, s.r, gridMs);
+    const auto hierarchy = timed(FastLevel::Hierarchy, 0.0, hierarchyMs);
+    const auto flat = timed(FastLevel::Flat, 0.0, flatMs);
     std::vector<std::unique_ptr<Peer>> peers;
-    peers.push_back(std::make_unique<ClodPeer>(hierarchy, "clod-hierarchy"));
-    peers.push_back(std::make_unique<ClodPeer>(flat, "clod-flat"));
+    peers.push_back(std::make_unique<ClodPeer>(*grid, "clod-grid"));
+    peers.back()->buildMs = gridMs;
+    peers.push_back(std::make_unique<ClodPeer>(*grid, "clod-grid-cache", true));
+    peers.back()->buildMs = gridMs;
+    peers.push_back(std::make_unique<ClodPeer>(*hierarchy, "clod-hierarchy"));
+    peers.back()->buildMs = hierarchyMs;
+    peers.push_back(std::make_unique<ClodPeer>(*flat, "clod-flat"));
+    peers.back()->buildMs = flatMs;
     for (auto make : {makeEmbreePeer, makeCgalPeer, makeFclPeer}) {
       try {
         peers.push_back(make(mesh));
@@ -469,10 +535,13 @@ void benchMesh(Run& run, const std::string& path) {
         for (auto& peer : peers) {
           std::vector<Answer> answers(probeSet.points.size());
           const double budget = peer->name() == "clod-flat" ? s.budgetFlat : s.budgetHierarchy;
-          Timing t = timeEach(probeSet.points.size(), budget, 200, [&](std::size_t i) {
-            peer->query(probeSet.points[i], s.r, answers[i]);
-            benchmark::DoNotOptimize(answers[i]);
-          });
+          Timing t = timeEach(
+              probeSet.points.size(), budget, 200,
+              [&](std::size_t i) {
+                peer->query(probeSet.points[i], s.r, answers[i]);
+                benchmark::DoNotOptimize(answers[i]);
+              },
+              [&] { peer->startStream(); });
           double md = 0;
           const std::size_t b = disagreements(answers, probeSet.ref, t.ns.size(), md);
           if (!best.count(peer->name()) || t.median < best[peer->name()].median) best[peer->name()] = std::move(t);
@@ -489,11 +558,13 @@ void benchMesh(Run& run, const std::string& path) {
       const auto& bt = bruteTimes[probeSet.name];
       run.peers->row(name, mesh.size(), s.reportD, set->size(), probeSet.name, "brute", bt.first.ns.size(),
                      num(bt.first.median), num(bt.first.mean), num(bt.first.p90), num(bt.first.p99), bt.second, 0, 0);
-      std::cout << "  peers on " << probeSet.name << ": clod " << best["clod-hierarchy"].median << " ns";
+      // Ours: the grid, with its cache on the stylus trajectory (a coherent stream).
+      const std::string ours = probeSet.name == "trajectory" ? "clod-grid-cache" : "clod-grid";
+      std::cout << "  peers on " << probeSet.name << ": " << ours << " " << best[ours].median << " ns";
       for (auto& peer : peers)
-        if (peer->name().rfind("clod", 0) != 0)
+        if (peer->name() != ours)
           std::cout << ", " << peer->name() << " " << best[peer->name()].median << " ns (x"
-                    << best[peer->name()].median / std::max(1e-9, best["clod-hierarchy"].median) << ")";
+                    << best[peer->name()].median / std::max(1e-9, best[ours].median) << ")";
       std::cout << "\n" << std::flush;
     }
   }
@@ -510,10 +581,18 @@ void benchMesh(Run& run, const std::string& path) {
     };
     std::vector<Entry> entries;
     std::vector<double> ds = s.quick ? std::vector<double>{0.0, 0.02, 0.08} : s.distances;
+    // The cube clustering on the same placement (the builder runs its own placement once).
+    auto c0 = std::chrono::steady_clock::now();
+    ClodBuilder cubeBuilder(meshPtr, std::make_shared<PaperPlacement>(), makeClustering("cube"));
+    const double cubePlacementMs = secondsSince(c0) * 1e3;
     for (double d : ds) {
       const ClodSphereSet& set = *levels[d];
-      Entry ours{d, "clod", {set.centres, set.radii}, 0, 0};
+      Entry ours{d, "clod", {set.centres, set.radii}, 0, placementMs + buildMsOf[d]};
       entries.push_back(std::move(ours));
+      c0 = std::chrono::steady_clock::now();
+      const ClodSphereSet cube = cubeBuilder.build(d);
+      Entry cubeEntry{d, "clod-cube", {cube.centres, cube.radii}, 0, cubePlacementMs + secondsSince(c0) * 1e3};
+      entries.push_back(std::move(cubeEntry));
       auto o0 = std::chrono::steady_clock::now();
       Entry oct{d, "octree", {}, 0, 0};
       oct.spheres = octreeSpheres(mesh, set.size(), oct.depth);
@@ -730,7 +809,9 @@ int main(int argc, char** argv) {
     run.growth = std::make_unique<Csv>(o + "growth.csv",
                                        "mesh,subdivisions,triangles,spheres,placement_ms,build_ms,detector_ms,"
                                        "build_tri_per_s,median_ns,mean_ns,peak_bytes_per_tri,retained_bytes_per_tri,"
-                                       "set_bytes_per_tri,peak_reset,checked,mismatches");
+                                       "set_bytes_per_tri,peak_reset,checked,mismatches,detector_level,detector_heap_bytes_per_tri,"
+                                       "detector_peak_bytes_per_tri,builder_peak_bytes_per_tri,hierarchy_detector_ms,"
+                                       "hierarchy_detector_heap_bytes_per_tri");
     for (const std::string& path : meshes) {
       MeshLoadOptions options;
       options.normalize = true;
@@ -753,9 +834,11 @@ int main(int argc, char** argv) {
         run.growth->row(name, level, g.triangles, g.spheres, num(g.placementMs), num(g.buildMs), num(g.detectorMs),
                         num(tri / ((g.placementMs + g.buildMs) * 1e-3)), num(g.medianNs), num(g.meanNs),
                         num(g.peakBytes / tri), num(g.retainedBytes / tri), num(g.setBytes / tri), g.peakReset ? 1 : 0,
-                        g.checked, g.mismatches);
+                        g.checked, g.mismatches, "grid", num(g.detectorHeapBytes / tri), num(g.detectorPeakBytes / tri),
+                        num(g.builderPeakBytes / tri), num(g.hierarchyMs), num(g.hierarchyHeapBytes / tri));
         std::cout << "  growth " << name << " " << g.triangles << " tris: build " << g.placementMs + g.buildMs
-                  << " ms, query " << g.medianNs << " ns, peak " << g.peakBytes / tri << " B/tri\n"
+                  << " ms, detector " << g.detectorMs << " ms " << g.detectorHeapBytes / tri << " B/tri, query " << g.medianNs
+                  << " ns, peak " << g.peakBytes / tri << " B/tri\n"
                   << std::flush;
       }
     }
