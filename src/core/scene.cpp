@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/errors.h"
@@ -42,7 +43,11 @@ std::uint32_t SceneDetector::addObject(std::string name, std::shared_ptr<const T
   objects_.push_back(std::move(object));
   // A little slack so rounding in the transform never rejects a touching pointer.
   const double radius = std::sqrt(radius2) * (1.0 + 1e-9) + 1e-12;
-  bounds_.push_back(Bound{0.0, 0.0, 0.0, radius, true});
+  boundX_.push_back(0.0);
+  boundY_.push_back(0.0);
+  boundZ_.push_back(0.0);
+  boundR_.push_back(radius);
+  active_.push_back(1);
   setPose(index, worldFromObject);
   return index;
 }
@@ -58,9 +63,10 @@ void SceneDetector::setPose(std::uint32_t i, const Eigen::Isometry3d& worldFromO
 void SceneDetector::updateBound(std::uint32_t i) {
   const Object& object = objects_[i];
   const Vec3 c = object.worldFromObject * object.localCentre;
-  bounds_[i].x = c.x();
-  bounds_[i].y = c.y();
-  bounds_[i].z = c.z();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  boundX_[i] = active_[i] ? c.x() : nan;
+  boundY_[i] = active_[i] ? c.y() : nan;
+  boundZ_[i] = active_[i] ? c.z() : nan;
 }
 
 void SceneDetector::setDetector(std::uint32_t i, std::shared_ptr<const ClodDetector> detector) {
@@ -71,61 +77,72 @@ void SceneDetector::setDetector(std::uint32_t i, std::shared_ptr<const ClodDetec
   object.detector = std::move(detector);
 }
 
-void SceneDetector::setActive(std::uint32_t i, bool active) { bounds_.at(i).active = active; }
+void SceneDetector::setActive(std::uint32_t i, bool active) {
+  if (static_cast<bool>(active_.at(i)) == active) return;
+  active_[i] = active;
+  active ? --inactive_ : ++inactive_;
+  updateBound(i);
+}
 
 void SceneDetector::query(const Vec3& p, double r, DetectionMode mode, SceneContact* contacts, std::size_t capacity,
                           SceneQueryResult& out, QueryCache* caches) const noexcept {
   out = SceneQueryResult();
   if (!p.allFinite() || !std::isfinite(r) || r < 0.0) return;
-  const std::size_t n = bounds_.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    const Bound& b = bounds_[i];
-    if (!b.active) {
-      ++out.objectsInactive;
-      continue;
+  const std::size_t n = objects_.size();
+  out.objectsInactive = inactive_;
+  // Scene-level rejection, a block of objects at a time: first the sphere test for the whole block
+  // (branch-free, vectorised; an inactive object's NaN centre fails it), then only the survivors.
+  constexpr std::size_t kBlock = 64;
+  double margin[kBlock];  // squared distance minus squared reach: <= 0 when the pointer reaches the bound
+  const double px = p.x(), py = p.y(), pz = p.z();
+  for (std::size_t base = 0; base < n; base += kBlock) {
+    const std::size_t m = std::min(kBlock, n - base);
+    const double* __restrict bx = boundX_.data() + base;
+    const double* __restrict by = boundY_.data() + base;
+    const double* __restrict bz = boundZ_.data() + base;
+    const double* __restrict br = boundR_.data() + base;
+    for (std::size_t k = 0; k < m; ++k) {
+      const double dx = px - bx[k], dy = py - by[k], dz = pz - bz[k];
+      const double reach = br[k] + r;
+      margin[k] = dx * dx + dy * dy + dz * dz - reach * reach;  // a - b <= 0 exactly when a <= b
     }
-    // Scene-level rejection: the pointer ball misses the object's bounding sphere.
-    const double dx = p.x() - b.x, dy = p.y() - b.y, dz = p.z() - b.z;
-    const double reach = b.radius + r;
-    if (dx * dx + dy * dy + dz * dz > reach * reach) {
-      ++out.objectsRejected;
-      continue;
-    }
-    const Object& object = objects_[i];
-    const Vec3 local = object.objectFromWorld * p;
-    // The box is tighter than the sphere for long or flat objects; still no sphere touched.
-    if (object.localBox.exteriorDistance(local) > r) {
-      ++out.objectsRejected;
-      continue;
-    }
-    ++out.objectsQueried;
-    ContactResult result;
-    if (object.detector) {
-      object.detector->query(local, r, mode, result, caches ? &caches[i] : nullptr);
-    } else {
-      result = bruteForceQuery(*object.mesh, local, r);
-      ++out.bruteForce;
-    }
-    if (!result.contact) continue;
-    ++out.touched;
-    out.contact = true;
-    const Vec3 normal = object.worldFromObject.linear() * result.normal;
-    out.penetration += result.depth * normal;
-    if (out.contacts < capacity) {
-      SceneContact& c = contacts[out.contacts];
-      c.object = static_cast<std::uint32_t>(i);
-      c.local = result;
-      c.point = object.worldFromObject * result.point;
-      c.normal = normal;
-      if (out.deepest < 0 || result.depth > out.maxDepth) {
-        out.deepest = static_cast<std::int32_t>(out.contacts);
-        out.maxDepth = result.depth;
+    for (std::size_t k = 0; k < m; ++k) {
+      if (!(margin[k] <= 0.0)) continue;  // NaN (inactive) fails too
+      const std::size_t i = base + k;
+      const Object& object = objects_[i];
+      const Vec3 local = object.objectFromWorld * p;
+      // The box is tighter than the sphere for long or flat objects; still no sphere touched.
+      if (object.localBox.exteriorDistance(local) > r) continue;
+      ++out.objectsQueried;
+      ContactResult result;
+      if (object.detector) {
+        object.detector->query(local, r, mode, result, caches ? &caches[i] : nullptr);
+      } else {
+        result = bruteForceQuery(*object.mesh, local, r);
+        ++out.bruteForce;
       }
-      ++out.contacts;
-    } else if (result.depth > out.maxDepth) {
-      out.maxDepth = result.depth;  // deepest stays the deepest entry in the array
+      if (!result.contact) continue;
+      ++out.touched;
+      out.contact = true;
+      const Vec3 normal = object.worldFromObject.linear() * result.normal;
+      out.penetration += result.depth * normal;
+      if (out.contacts < capacity) {
+        SceneContact& c = contacts[out.contacts];
+        c.object = static_cast<std::uint32_t>(i);
+        c.local = result;
+        c.point = object.worldFromObject * result.point;
+        c.normal = normal;
+        if (out.deepest < 0 || result.depth > out.maxDepth) {
+          out.deepest = static_cast<std::int32_t>(out.contacts);
+          out.maxDepth = result.depth;
+        }
+        ++out.contacts;
+      } else if (result.depth > out.maxDepth) {
+        out.maxDepth = result.depth;  // deepest stays the deepest entry in the array
+      }
     }
   }
+  out.objectsRejected = static_cast<std::uint32_t>(n) - out.objectsQueried - out.objectsInactive;
 }
 
 }  // namespace clod_haptics

@@ -86,18 +86,13 @@ class SceneDetector {
   /** \brief World-from-object pose of object i. */
   const Eigen::Isometry3d& pose(std::uint32_t i) const { return objects_[i].worldFromObject; }
   /** \brief Whether object i takes part in queries. */
-  bool active(std::uint32_t i) const { return bounds_[i].active; }
+  bool active(std::uint32_t i) const { return active_[i] != 0; }
   /** \brief Centre of object i's bounding sphere in the world frame. */
-  Vec3 boundCentre(std::uint32_t i) const { return Vec3(bounds_[i].x, bounds_[i].y, bounds_[i].z); }
+  Vec3 boundCentre(std::uint32_t i) const { return objects_[i].worldFromObject * objects_[i].localCentre; }
   /** \brief Radius of object i's bounding sphere. */
-  double boundRadius(std::uint32_t i) const { return bounds_[i].radius; }
+  double boundRadius(std::uint32_t i) const { return boundR_[i]; }
 
  private:
-  /** The hot data of the rejection test, contiguous: one 40-byte record per object. */
-  struct Bound {
-    double x, y, z, radius;
-    bool active;
-  };
   struct Object {
     std::string name;
     std::shared_ptr<const TriangleMesh> mesh;
@@ -110,7 +105,12 @@ class SceneDetector {
   };
   void updateBound(std::uint32_t i);
 
-  std::vector<Bound> bounds_;
+  // The hot data of the rejection test, one array per coordinate so the test over all objects
+  // vectorises: the world centre of each bounding sphere (NaN while the object is inactive, which no
+  // comparison accepts) and its radius.
+  std::vector<double> boundX_, boundY_, boundZ_, boundR_;
+  std::vector<char> active_;
+  std::uint32_t inactive_ = 0;
   std::vector<Object, Eigen::aligned_allocator<Object>> objects_;
 };
 
