@@ -14,19 +14,32 @@ SceneAssets::SceneAssets(std::shared_ptr<SphereSetCache> cache, FastLevel fastLe
   if (!cache_) cache_ = std::make_shared<SphereSetCache>();
 }
 
-std::shared_ptr<const TriangleMesh> SceneAssets::mesh(const std::string& path, const MeshLoadOptions& options) {
+void SceneAssets::setMeshCache(std::shared_ptr<MeshCache> meshCache) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  meshCache_ = std::move(meshCache);
+}
+
+std::shared_ptr<const TriangleMesh> SceneAssets::mesh(const std::string& path, const MeshLoadOptions& options,
+                                                      MeshInfo* info) {
   std::ostringstream key;
   key.precision(17);
   key << path << '|' << options.scale << '|' << options.normalize << '|' << options.orientOutward;
+  MeshInfo local;
+  MeshInfo& out = info ? *info : local;
+  out = MeshInfo();
   std::lock_guard<std::mutex> lock(mutex_);
   auto& slot = meshes_[key.str()];
-  if (!slot) {
-    try {
-      slot = std::make_shared<const TriangleMesh>(loadMesh(path, options));
-    } catch (...) {
-      meshes_.erase(key.str());
-      throw;
-    }
+  if (slot) {
+    out.shared = true;
+    out.cache.source = CacheSource::Hit;
+    return slot;
+  }
+  try {
+    slot = std::make_shared<const TriangleMesh>(meshCache_ ? meshCache_->load(path, options, &out.cache)
+                                                           : loadMesh(path, options));
+  } catch (...) {
+    meshes_.erase(key.str());
+    throw;
   }
   return slot;
 }

@@ -44,6 +44,7 @@ SceneHapticDetector::SceneHapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh
   readParameters();
 
   assets_ = std::make_unique<SceneAssets>(std::make_shared<SphereSetCache>(cacheDir_), fastLevel_, radius_);
+  if (cacheMeshes_) assets_->setMeshCache(std::make_shared<MeshCache>(cacheDir_));
   const auto start = std::chrono::steady_clock::now();
   std::size_t triangles = 0;
   for (const SceneObjectConfig& object : config_.objects) {
@@ -52,7 +53,11 @@ SceneHapticDetector::SceneHapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh
     state.meshPath = resolveMeshPath(object.mesh);
     MeshLoadOptions options;
     options.scale = object.scale;
-    auto mesh = assets_->mesh(state.meshPath, options);  // shared when several objects use the same file
+    SceneAssets::MeshInfo meshInfo;
+    auto mesh = assets_->mesh(state.meshPath, options, &meshInfo);  // shared when several objects use the same file
+    if (!meshInfo.cache.problem.empty()) {
+      ROS_WARN("scene_detector: '%s': %s", object.name.c_str(), meshInfo.cache.problem.c_str());
+    }
     triangles += mesh->size();
     state.viaTf = object.frameId != config_.frameId;
     state.poseKnown = !state.viaTf;
@@ -74,9 +79,11 @@ SceneHapticDetector::SceneHapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh
   shownSpheres_.assign(n, 0);
   shownHit_.assign(n, 0);
   shownContact_.assign(n, 0);
-  ROS_INFO("scene_detector: %zu objects (%zu triangles) loaded in %.0f ms, scene frame '%s', level cache %s", n,
-           triangles, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
-           config_.frameId.c_str(), assets_->cache()->directory().c_str());
+  ROS_INFO("scene_detector: %zu objects (%zu triangles) loaded in %.0f ms (%lu meshes from the mesh cache), scene "
+           "frame '%s', cache %s",
+           n, triangles, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
+           static_cast<unsigned long>(assets_->meshCache() ? assets_->meshCache()->hits() : 0), config_.frameId.c_str(),
+           assets_->cache()->directory().c_str());
 
   contactsPub_ = pnh_.advertise<ContactArray>("contacts", 100);
   forcePub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("force", 100);
@@ -121,6 +128,7 @@ void SceneHapticDetector::readParameters() {
   pnh_.param("static_retry", staticRetry_, 0.5);
   pnh_.param("prefetch_margin", prefetchMargin_, 0.05);
   pnh_.param("quick_start", quickStart_, true);
+  pnh_.param("cache_meshes", cacheMeshes_, true);
   pnh_.param("grid_on_demand", gridOnDemand_, true);
   pnh_.param("detectors_on_demand", detectorsOnDemand_, false);
   pnh_.param("pose_queue_size", poseQueueSize_, 100);

@@ -16,6 +16,7 @@
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/mesh_cache.h"
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/scene_assets.h"
 #include "clod_haptics/core/sphere_cache.h"
@@ -330,6 +331,81 @@ TEST(SceneAssets, SharesMeshesAndLevelsAndRestartsFromTheCache) {
   EXPECT_EQ(level->spheres().get(), set.get());
   EXPECT_EQ(restarted.placements(), 0u) << "a restart must not run the placement again";
   expectSameSet(*first->spheres(), *level->spheres());
+}
+
+void expectSameMesh(const TriangleMesh& a, const TriangleMesh& b) {
+  EXPECT_EQ(a.name, b.name);
+  EXPECT_EQ(a.scale, b.scale);
+  EXPECT_EQ(a.offset, b.offset);
+  EXPECT_EQ(a.flipped, b.flipped);
+  ASSERT_EQ(a.vertices.size(), b.vertices.size());
+  ASSERT_EQ(a.triangles, b.triangles);
+  ASSERT_EQ(a.normals.size(), b.normals.size());
+  for (std::size_t i = 0; i < a.vertices.size(); ++i) ASSERT_EQ(a.vertices[i], b.vertices[i]);
+  for (std::size_t i = 0; i < a.normals.size(); ++i) ASSERT_EQ(a.normals[i], b.normals[i]);
+}
+
+TEST(MeshCache, RestartReadsTheLoadedMeshBack) {
+  TempDir dir;
+  MeshLoadOptions options;
+  options.scale = 0.5;
+  const TriangleMesh parsed = loadMesh(torusPath(), options);
+  {
+    MeshCache cache(dir.str());
+    CacheOutcome outcome;
+    expectSameMesh(parsed, cache.load(torusPath(), options, &outcome));
+    EXPECT_EQ(outcome.source, CacheSource::Built);
+    EXPECT_TRUE(outcome.problem.empty()) << outcome.problem;
+    EXPECT_EQ(cache.parsed(), 1u);
+  }
+  MeshCache restarted(dir.str());
+  CacheOutcome outcome;
+  const TriangleMesh cached = restarted.load(torusPath(), options, &outcome);
+  EXPECT_EQ(outcome.source, CacheSource::Hit);
+  EXPECT_EQ(restarted.parsed(), 0u) << "a restart must not parse the file again";
+  expectSameMesh(parsed, cached);
+  EXPECT_EQ(meshContentHash(parsed), meshContentHash(cached));  // so the sphere cache hits as well
+  // Other load options are another entry.
+  restarted.load(torusPath(), MeshLoadOptions{}, &outcome);
+  EXPECT_EQ(outcome.source, CacheSource::Built);
+}
+
+TEST(MeshCache, EditedSourceFileIsNeverServedFromTheOldEntry) {
+  TempDir dir;
+  const std::string copy = dir.str() + "/model.obj";
+  fs::copy_file(torusPath(), copy);
+  MeshCache cache(dir.str() + "/cache");
+  CacheOutcome outcome;
+  cache.load(copy, {}, &outcome);
+  EXPECT_EQ(outcome.source, CacheSource::Built);
+  // Move one vertex in the file: the key changes, the new geometry is parsed.
+  std::ifstream in(copy);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  in.close();
+  const std::size_t at = text.find("\nv ");
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, 4, "\nv 0.5");  // the first vertex's x gains a leading 0.5 digit
+  std::ofstream(copy, std::ios::trunc) << text;
+  const TriangleMesh edited = cache.load(copy, {}, &outcome);
+  EXPECT_EQ(outcome.source, CacheSource::Built);
+  expectSameMesh(loadMesh(copy), edited);
+}
+
+TEST(MeshCache, CorruptFileIsRebuiltAndMissingFileThrows) {
+  TempDir dir;
+  MeshCache cache(dir.str());
+  CacheOutcome outcome;
+  const TriangleMesh first = cache.load(torusPath(), {}, &outcome);
+  std::vector<char> bytes = readBytes(outcome.path);
+  bytes[bytes.size() / 3] ^= 0x40;
+  writeBytes(outcome.path, bytes);
+  EXPECT_THROW(readMeshBinary(outcome.path, meshSourceKey(torusPath(), {})), FormatError);
+  const TriangleMesh again = cache.load(torusPath(), {}, &outcome);
+  EXPECT_EQ(outcome.source, CacheSource::Rebuilt);
+  EXPECT_NE(outcome.problem.find("checksum"), std::string::npos) << outcome.problem;
+  EXPECT_EQ(cache.rejected(), 1u);
+  expectSameMesh(first, again);
+  EXPECT_THROW(cache.load(dir.str() + "/no_such_mesh.obj"), MeshLoadError);
 }
 
 }  // namespace

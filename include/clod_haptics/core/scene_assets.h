@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/mesh_cache.h"
 #include "clod_haptics/core/mesh.h"
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/sphere_cache.h"
@@ -39,10 +40,23 @@ class SceneAssets {
               bool keepBuilders = true);
 
   /**
+   * \brief Also keep loaded meshes in a disk cache (keyed by the source file's bytes and the load
+   * options), so a restart skips the mesh parser. Off by default; null switches it off.
+   */
+  void setMeshCache(std::shared_ptr<MeshCache> meshCache);
+
+  /** \brief What the last mesh() call did when a mesh cache is set (Hit, Built or Rebuilt). */
+  struct MeshInfo {
+    bool shared = false;  ///< already in memory (another object uses the same file and options)
+    CacheOutcome cache;   ///< the mesh cache outcome (source Built without a mesh cache)
+  };
+
+  /**
    * \brief The mesh at path loaded with options, shared with earlier calls asking for the same.
    * \throws MeshLoadError, InvalidParameter as loadMesh.
    */
-  std::shared_ptr<const TriangleMesh> mesh(const std::string& path, const MeshLoadOptions& options = {});
+  std::shared_ptr<const TriangleMesh> mesh(const std::string& path, const MeshLoadOptions& options = {},
+                                           MeshInfo* info = nullptr);
 
   /**
    * \brief The level of mesh for clustering distance d: from memory, else the disk cache, else built
@@ -80,6 +94,8 @@ class SceneAssets {
   std::uint64_t placements() const { return placements_; }
   /** \brief The disk cache. */
   const std::shared_ptr<SphereSetCache>& cache() const { return cache_; }
+  /** \brief The mesh cache (may be null). */
+  const std::shared_ptr<MeshCache>& meshCache() const { return meshCache_; }
 
  private:
   std::uint64_t hashLocked(const std::shared_ptr<const TriangleMesh>& mesh);
@@ -87,6 +103,7 @@ class SceneAssets {
                                                      LevelInfo& out);
 
   std::shared_ptr<SphereSetCache> cache_;
+  std::shared_ptr<MeshCache> meshCache_;
   FastLevel fastLevel_;
   double gridRadius_;
   bool keepBuilders_;

@@ -28,7 +28,8 @@ namespace clod_haptics {
  * Parameters: ~scene (a scene file loaded with rosparam, see SceneConfig), ~pose_topic,
  * ~pointer_radius, ~detection_mode, ~stiffness, ~max_force, ~cache_dir, ~fast_level, ~marker_rate,
  * ~marker_objects (names to draw; empty: all), ~pose_queue_size, ~static_retry (s), ~quick_start,
- * ~grid_on_demand, ~detectors_on_demand, ~prefetch_margin (m).
+ * ~grid_on_demand, ~detectors_on_demand, ~prefetch_margin (m), ~cache_meshes (loaded meshes in the
+ * cache too, so a restart skips the mesh parser).
  *
  * Threads: poses arrive on the caller's node handle (the haptic path: one tf2 lookup for the pose's
  * frame when it differs from the scene frame, one per moving object, then one allocation-free
@@ -102,6 +103,7 @@ class SceneHapticDetector {
   double staticRetry_ = 0.5;
   double prefetchMargin_ = 0.05;
   bool quickStart_ = true;
+  bool cacheMeshes_ = true;
   bool gridOnDemand_ = true;
   bool detectorsOnDemand_ = false;
   int poseQueueSize_ = 100;

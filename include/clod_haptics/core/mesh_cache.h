@@ -1,0 +1,71 @@
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+
+#include "clod_haptics/core/mesh.h"
+#include "clod_haptics/core/mesh_loader.h"
+#include "clod_haptics/core/sphere_cache.h"
+
+namespace clod_haptics {
+
+/** \brief Version of the binary mesh cache format; part of every key and file header. */
+constexpr std::uint32_t kMeshCacheFormatVersion = 1;
+
+/**
+ * \brief The key of a loaded mesh: a hash of the source file's bytes and of the load options (scale,
+ * normalise, orientation) and the format version. Editing the file changes the key, so a cached mesh
+ * of an older file is never used.
+ * \throws MeshLoadError when the file cannot be read.
+ */
+std::uint64_t meshSourceKey(const std::string& path, const MeshLoadOptions& options);
+
+/**
+ * \brief Writes a loaded mesh (vertices, triangles, normals, scale, offset, orientation flag, name)
+ * in a binary format with a header and a checksum.
+ * \throws FormatError when the file cannot be written.
+ */
+void writeMeshBinary(const TriangleMesh& mesh, std::uint64_t sourceKey, const std::string& path);
+
+/**
+ * \brief Reads what writeMeshBinary wrote and checks it: magic, version, key, sizes, checksum, every
+ * index in range and every coordinate finite.
+ * \throws FormatError naming the first check that failed.
+ */
+TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey);
+
+/**
+ * \brief A disk cache of loaded meshes, so a restart skips the parser (assimp): one file per source
+ * key. Like SphereSetCache: a bad file is deleted and the mesh loaded again, files appear atomically.
+ * Thread-safe.
+ */
+class MeshCache {
+ public:
+  /** \brief A cache in directory; empty means defaultSphereCacheDirectory(). */
+  explicit MeshCache(std::string directory = "");
+
+  /**
+   * \brief The mesh at path loaded with options: from the cache when a valid file exists, else with
+   * loadMesh() (then stored). outcome reports which, and any problem.
+   * \throws MeshLoadError, InvalidParameter as loadMesh.
+   */
+  TriangleMesh load(const std::string& path, const MeshLoadOptions& options = {}, CacheOutcome* outcome = nullptr);
+
+  /** \brief The file that holds a mesh of this key. */
+  std::string pathFor(std::uint64_t sourceKey) const;
+  /** \brief The directory. */
+  const std::string& directory() const { return directory_; }
+  /** \brief Meshes read from the cache. */
+  std::uint64_t hits() const { return hits_.load(); }
+  /** \brief Meshes parsed because no (valid) file existed. */
+  std::uint64_t parsed() const { return parsed_.load(); }
+  /** \brief Files rejected as stale or corrupt. */
+  std::uint64_t rejected() const { return rejected_.load(); }
+
+ private:
+  std::string directory_;
+  std::atomic<std::uint64_t> hits_{0}, parsed_{0}, rejected_{0};
+};
+
+}  // namespace clod_haptics
