@@ -105,6 +105,9 @@ def main():
         "with the fenced time-stamp counter, the timer's own cost subtracted; the answers are kept and compared "
         "with the exact reference.\n"
     )
+    md.append("**Ours** in the comparisons: the grid fast level (`FastLevel::Grid`, gridRadius = r), stateless "
+              "(`clod-grid`) on the near, uniform and near-morton probes, and with one `QueryCache` for the stream "
+              "(`clod-grid-cache`) on the stylus trajectory; the hierarchy and the flat list are shown beside it.\n")
     md.append("Reproduce: `make bench` (full, writes this directory) or `BENCH_QUICK=1 make bench` "
               "(minutes, writes bench/results/tmp/quick).\n")
 
@@ -360,7 +363,7 @@ def main():
             "The meshes subdivided (midpoint split of every triangle into four, repeatedly), each point measured "
             "in a forked process. Build = `ClodBuilder` construction (ray-cast placement, all hardware threads) + "
             "`build(d)`; detector = `ClodDetector` construction with the grid fast level (gridRadius = r), the "
-            "detector queried. Query: median over near-surface probes, exact mode, grid, no cache. Peak = the larger "
+            "detector the queries run on. Query: median over near-surface probes, exact mode, grid, no cache. Peak = the larger "
             "VmHWM of the builder phase and of the detector's construction minus VmRSS before the build (peak reset "
             "through /proc/self/clear_refs), per triangle, for the whole CLOD set (builder, set and detector alive "
             "together); retained = resident after the builder is freed; set = the sphere set's arrays alone; "
