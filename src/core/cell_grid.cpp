@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <thread>
 
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
@@ -80,45 +81,70 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
     dims_[k] = std::min<std::int64_t>(kMaxDim, static_cast<std::int64_t>(std::ceil((bounds.sizes()[k] + 2 * (reach + h)) * inv_)) + 1);
 
   const double tiny = std::max(1e-9 * h, 4e-9 * magnitude);
-  std::vector<Candidate> candidates;
-  for (std::size_t t = 0; t < mesh.size(); ++t) {
-    const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
-    const Vec3 lo = a.cwiseMin(b).cwiseMin(c) - Vec3::Constant(reach);
-    const Vec3 hi = a.cwiseMax(b).cwiseMax(c) + Vec3::Constant(reach);
-    std::int64_t l[3], u[3];
-    for (int k = 0; k < 3; ++k) {
-      l[k] = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor((lo[k] - origin_[k]) * inv_)));
-      u[k] = std::min<std::int64_t>(dims_[k] - 1, static_cast<std::int64_t>(std::floor((hi[k] - origin_[k]) * inv_)));
-    }
-    for (std::int64_t x = l[0]; x <= u[0]; ++x)
-      for (std::int64_t y = l[1]; y <= u[1]; ++y)
-        for (std::int64_t z = l[2]; z <= u[2]; ++z) {
-          const Vec3 centre = origin_ + (Vec3(static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)) +
-                                         Vec3::Constant(0.5)) * h;
-          const Vec3 toCentre = centre - closestPointOnTriangle(centre, a, b, c);
-          const double d = toCentre.norm();
-          if (d <= reach) {
-            const std::uint64_t key = static_cast<std::uint64_t>(x) | static_cast<std::uint64_t>(y) << kBits |
-                                      static_cast<std::uint64_t>(z) << (2 * kBits);
-            // The supporting-plane bound needs the true direction to the centre. The closest point
-            // carries an error of a few ulps of the coordinates, so its direction is trusted only when
-            // d is far above it (the bound then errs by < 1e-7 |p - q|, inside the slack); otherwise the
-            // entry keeps the trivial bound 0 <= distance (dc = 0, u = 0): never skipped, never wrong.
-            if (d > tiny) {
-              const Vec3 u = toCentre / d;
-              candidates.push_back({key, roundDown(d), static_cast<std::uint32_t>(t),
-                                    {static_cast<float>(u.x()), static_cast<float>(u.y()), static_cast<float>(u.z())}});
-            } else {
-              candidates.push_back({key, 0.0f, static_cast<std::uint32_t>(t), {0.0f, 0.0f, 0.0f}});
+  // Candidates of a range of triangles; two threads each fill their own list.
+  auto collect = [&](std::size_t begin, std::size_t end, std::vector<Candidate>& candidates) {
+    for (std::size_t t = begin; t < end; ++t) {
+      const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
+      const Vec3& n = mesh.normals[t];
+      const bool planar = !n.isZero(0.0);
+      const double planeLimit = reach + 1e-9 * h + pad;  // slack for the rounding of the plane distance
+      const Vec3 lo = a.cwiseMin(b).cwiseMin(c) - Vec3::Constant(reach);
+      const Vec3 hi = a.cwiseMax(b).cwiseMax(c) + Vec3::Constant(reach);
+      std::int64_t l[3], u[3];
+      for (int k = 0; k < 3; ++k) {
+        l[k] = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor((lo[k] - origin_[k]) * inv_)));
+        u[k] = std::min<std::int64_t>(dims_[k] - 1, static_cast<std::int64_t>(std::floor((hi[k] - origin_[k]) * inv_)));
+      }
+      for (std::int64_t x = l[0]; x <= u[0]; ++x)
+        for (std::int64_t y = l[1]; y <= u[1]; ++y)
+          for (std::int64_t z = l[2]; z <= u[2]; ++z) {
+            const Vec3 centre = origin_ + (Vec3(static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)) +
+                                           Vec3::Constant(0.5)) * h;
+            // The distance to the plane is a lower bound of the distance to the triangle: most cells of
+            // the box are rejected by it before the closest-point computation.
+            if (planar && std::abs(n.dot(centre - a)) > planeLimit) continue;
+            const Vec3 toCentre = centre - closestPointOnTriangle(centre, a, b, c);
+            const double d = toCentre.norm();
+            if (d <= reach) {
+              const std::uint64_t key = static_cast<std::uint64_t>(x) | static_cast<std::uint64_t>(y) << kBits |
+                                        static_cast<std::uint64_t>(z) << (2 * kBits);
+              // The supporting-plane bound needs the true direction to the centre. The closest point
+              // carries an error of a few ulps of the coordinates, so its direction is trusted only when
+              // d is far above it (the bound then errs by < 1e-7 |p - q|, inside the slack); otherwise the
+              // entry keeps the trivial bound 0 <= distance (dc = 0, u = 0): never skipped, never wrong.
+              if (d > tiny) {
+                const Vec3 dir = toCentre / d;
+                candidates.push_back(
+                    {key, roundDown(d), static_cast<std::uint32_t>(t),
+                     {static_cast<float>(dir.x()), static_cast<float>(dir.y()), static_cast<float>(dir.z())}});
+              } else {
+                candidates.push_back({key, 0.0f, static_cast<std::uint32_t>(t), {0.0f, 0.0f, 0.0f}});
+              }
             }
           }
-        }
-  }
-  std::sort(candidates.begin(), candidates.end(), [](const Candidate& p, const Candidate& q) {
+    }
+  };
+  auto order = [](const Candidate& p, const Candidate& q) {
     if (p.key != q.key) return p.key < q.key;
     if (p.distance != q.distance) return p.distance < q.distance;
     return p.triangle < q.triangle;
-  });
+  };
+  std::vector<Candidate> candidates;
+  {
+    const std::size_t half = mesh.size() / 2;
+    std::vector<Candidate> second;
+    std::thread helper([&] {
+      collect(half, mesh.size(), second);
+      std::sort(second.begin(), second.end(), order);
+    });
+    collect(0, half, candidates);
+    std::sort(candidates.begin(), candidates.end(), order);
+    helper.join();
+    const std::size_t middle = candidates.size();
+    candidates.insert(candidates.end(), second.begin(), second.end());
+    std::inplace_merge(candidates.begin(), candidates.begin() + static_cast<std::ptrdiff_t>(middle), candidates.end(),
+                       order);
+  }
 
   // The first sphere listing each triangle (every triangle is listed: the coverage invariant).
   std::vector<std::uint32_t> sphereOf(mesh.size(), std::numeric_limits<std::uint32_t>::max());
