@@ -37,6 +37,7 @@ struct ClodDetector::Best {
 
 namespace {
 constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+constexpr std::size_t kRecord = 13;  // doubles per triangle record: ball (4), corners (9)
 }
 
 ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
@@ -49,18 +50,16 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());
   pad_ = 1e-12 * std::max(magnitude, bounds.diagonal().norm());
 
-  corners_.resize(9 * m.size());
-  for (std::size_t t = 0; t < m.size(); ++t)
-    for (int v = 0; v < 3; ++v)
-      for (int k = 0; k < 3; ++k) corners_[9 * t + 3 * v + k] = m.vertex(t, v)[k];
-
-  triangleBall_.resize(4 * m.size());
+  triangles_.resize(kRecord * m.size());
   for (std::size_t t = 0; t < m.size(); ++t) {
+    double* record = triangles_.data() + kRecord * t;
     const Vec3 c = m.centroid(t);
     double r2 = 0.0;
     for (int v = 0; v < 3; ++v) r2 = std::max(r2, (m.vertex(t, v) - c).squaredNorm());
-    for (int k = 0; k < 3; ++k) triangleBall_[4 * t + k] = c[k];
-    triangleBall_[4 * t + 3] = std::sqrt(r2) + pad_;
+    for (int k = 0; k < 3; ++k) record[k] = c[k];
+    record[3] = std::sqrt(r2) + pad_;
+    for (int v = 0; v < 3; ++v)
+      for (int k = 0; k < 3; ++k) record[4 + 3 * v + k] = m.vertex(t, v)[k];
   }
 
   sphereData_.resize(4 * s.size());
@@ -120,10 +119,10 @@ inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, 
                                        Best& best) const {
   ++best.tested;
   // A ball around the triangle rejects it cheaply when it cannot beat the current best.
-  const double* ball = triangleBall_.data() + 4 * tri;
+  const double* ball = triangles_.data() + kRecord * tri;
   const double bx = p.x() - ball[0], by = p.y() - ball[1], bz = p.z() - ball[2], reach = ball[3] + best.reach;
   if (bx * bx + by * by + bz * bz > reach * reach) return;
-  const double* c = corners_.data() + 9 * tri;
+  const double* c = ball + 4;
   const Vec3 a(c[0], c[1], c[2]), b(c[3], c[4], c[5]), cc(c[6], c[7], c[8]);
   Vec3 q;
   if (mode == DetectionMode::Exact) {
@@ -196,7 +195,7 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   // Start from the last contact: a close triangle found first lets the sorted scan stop early.
   if (cache != nullptr && cache->lastTriangle >= 0 && static_cast<std::size_t>(cache->lastTriangle) < mesh_->size()) {
     const auto last = static_cast<std::uint32_t>(cache->lastTriangle);
-    testTriangle(last, sphereOfTriangle_[last], p, mode, best);
+    testTriangle(last, kNone, p, mode, best);
   }
   const Vec3 centre = grid_.centreOf(key);
   const Vec3 rel = p - centre;
@@ -210,7 +209,7 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
     // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.
     const double bound = dc + rel.x() * e[i].direction[0] + rel.y() * e[i].direction[1] + rel.z() * e[i].direction[2];
     if (bound - slack > best.reach) continue;
-    testTriangle(e[i].triangle, sphereOfTriangle_[e[i].triangle], p, mode, best);
+    testTriangle(e[i].triangle, kNone, p, mode, best);  // the sphere is looked up once, for the answer
   }
 }
 
@@ -313,7 +312,9 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
   out.distance = std::sqrt(best.d2);
   out.depth = r - out.distance;
   out.triangle = static_cast<std::int32_t>(best.triangle);
-  out.sphere = static_cast<std::int32_t>(best.sphere);
+  // The grid defers the sphere to here: the first sphere listing the triangle.
+  const std::uint32_t sphere = best.sphere != kNone ? best.sphere : sphereOfTriangle_[best.triangle];
+  out.sphere = sphere != kNone ? static_cast<std::int32_t>(sphere) : -1;
   out.normal = contactNormal(p, best.point, mesh_->normals[best.triangle]);
   if (cache != nullptr) cache->lastTriangle = out.triangle;
 }

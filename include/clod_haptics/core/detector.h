@@ -93,9 +93,10 @@ class ClodDetector {
   double pad_ = 0.0;  // conservative padding relative to the model's coordinates
 
   // Flat copies for the cache: triangle corners (9 doubles each) and padded spheres (x, y, z, radius).
-  std::vector<double> corners_;
   std::vector<double> sphereData_;
-  std::vector<double> triangleBall_;  // per triangle: centroid and padded radius reaching its vertices
+  // Per triangle, one record of 13 doubles (two cache lines): a ball around it (centroid and padded
+  // radius reaching its vertices) for a cheap reject, then its three corners.
+  std::vector<double> triangles_;
   // Hierarchy: trees over the spheres, and one tree per sphere over its triangles. The ball tree bounds
   // each sphere's ball (spheres mode, display); the tight tree bounds each sphere by the box of the
   // triangles it wraps intersected with its ball, the region where a precise contact through it can lie.
