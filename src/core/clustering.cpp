@@ -184,6 +184,12 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, UnionFind& uf) {
           bool linked = false;
           for (std::size_t a = runStart[c]; a < runStart[c + 1] && !linked; ++a) {
             if (loose[sorted[a]]) continue;
+            // A point d or more away from the other cell's bounds has no partner there.
+            if (!extreme) {
+              const Vec3& pa = points[sorted[a]];
+              const Vec3 gap = (cellBox[c2].min() - pa).cwiseMax(pa - cellBox[c2].max()).cwiseMax(0.0);
+              if (gap.squaredNorm() >= d2 * (1.0 + 1e-12)) continue;
+            }
             for (std::size_t b = runStart[c2]; b < runStart[c2 + 1]; ++b) {
               if (loose[sorted[b]]) continue;
               if (close(sorted[a], sorted[b])) {

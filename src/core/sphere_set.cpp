@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "clod_haptics/core/errors.h"
@@ -71,11 +72,18 @@ ClodSphereSet ClodBuilder::build(double d) const {
   for (std::size_t i = 0; i < centres_.size(); ++i) lists[fill[labels[i]]++] = wrapped_[i];
   set.triangles.reserve(lists.size());
   std::vector<std::uint32_t> offsets(k + 1, 0);
+  // Duplicates within a cluster are dropped with a stamp per triangle (the last cluster that took
+  // it), O(n) in all; each list is then sorted, which is cheap on the short lists most clusters have.
+  std::vector<std::uint32_t> stamp(mesh.size(), std::numeric_limits<std::uint32_t>::max());
   for (std::uint32_t c = 0; c < k; ++c) {
-    auto first = lists.begin() + set.offsets[c], last = lists.begin() + set.offsets[c + 1];
-    std::sort(first, last);
-    last = std::unique(first, last);
-    set.triangles.insert(set.triangles.end(), first, last);
+    const std::size_t start = set.triangles.size();
+    for (std::uint32_t i = set.offsets[c]; i < set.offsets[c + 1]; ++i) {
+      const std::uint32_t t = lists[i];
+      if (stamp[t] == c) continue;
+      stamp[t] = c;
+      set.triangles.push_back(t);
+    }
+    std::sort(set.triangles.begin() + static_cast<std::ptrdiff_t>(start), set.triangles.end());
     offsets[c + 1] = static_cast<std::uint32_t>(set.triangles.size());
   }
   set.offsets = std::move(offsets);
