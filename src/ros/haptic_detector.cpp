@@ -143,6 +143,13 @@ void HapticDetector::onPose(const geometry_msgs::PoseStampedConstPtr& msg) {
     const auto& t = tf.transform.translation;
     rotation = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized();
     p = rotation * p + Vec3(t.x, t.y, t.z);
+    // A huge but finite pose (1e308) can overflow to Inf when rotated: not a position either.
+    if (!p.allFinite()) {
+      droppedNonFinite_.fetch_add(1, std::memory_order_relaxed);
+      ROS_WARN_THROTTLE(1.0, "detector: dropped a pose in frame '%s' that is not finite in frame '%s' (%lu so far)",
+                        poseFrame.c_str(), meshFrame_.c_str(), static_cast<unsigned long>(droppedNonFinite_.load()));
+      return;
+    }
   }
 
   const double radius = radius_.load(std::memory_order_relaxed);
@@ -190,6 +197,18 @@ void HapticDetector::onPose(const geometry_msgs::PoseStampedConstPtr& msg) {
 // Reconfigure and levels.
 
 void HapticDetector::onReconfigure(DetectorConfig& config, std::uint32_t /*level*/) {
+  // dynamic_reconfigure clamps values to the ranges of cfg/Detector.cfg, but NaN passes every clamp
+  // (comparisons with NaN are false): a NaN radius would answer "no contact" to every pose, a NaN
+  // distance would ask for a level nobody can build. Keep the current value; the client gets it back.
+  auto keepFinite = [](double& value, double current, const char* name) {
+    if (std::isfinite(value)) return;
+    ROS_WARN("detector: %s must be a finite number, not %g; keeping %g", name, value, current);
+    value = current;
+  };
+  keepFinite(config.clustering_distance, requestedDistance_.load(), "clustering_distance");
+  keepFinite(config.pointer_radius, radius_.load(), "pointer_radius");
+  keepFinite(config.stiffness, stiffness_.load(), "stiffness");
+  keepFinite(config.max_force, maxForce_.load(), "max_force");
   DetectionMode mode;
   if (parseDetectionMode(config.detection_mode.c_str(), mode)) {
     mode_ = static_cast<int>(mode);
