@@ -38,8 +38,8 @@ HapticDetector::HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   ROS_INFO("detector: loaded '%s' (%zu triangles) in frame '%s'; poses from %s", path.c_str(), mesh_->size(),
            meshFrame_.c_str(), nh_.resolveName(poseTopic_).c_str());
 
-  contactPub_ = pnh_.advertise<Contact>("contact", 100);
-  forcePub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("force", 100);
+  contactPub_ = pnh_.advertise<Contact>("contact", static_cast<std::uint32_t>(publishQueueSize_));
+  forcePub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("force", static_cast<std::uint32_t>(publishQueueSize_));
   statusPub_ = pnh_.advertise<DetectorStatus>("status", 1, true);
   // A new marker subscriber gets the mesh and spheres again.
   markerPub_ = displayPnh_.advertise<visualization_msgs::MarkerArray>(
@@ -89,6 +89,7 @@ void HapticDetector::readParameters() {
   pnh_.param("use_service", useService_, true);
   pnh_.param("service_timeout", serviceTimeout_, 5.0);
   pnh_.param("pose_queue_size", poseQueueSize_, 100);
+  pnh_.param("publish_queue_size", publishQueueSize_, 100);
   pnh_.param("marker_rate", markerRate_, 30.0);
   std::string fast;
   pnh_.param<std::string>("fast_level", fast, "grid");
@@ -100,6 +101,7 @@ void HapticDetector::readParameters() {
   if (!std::isfinite(gridRadius_) || gridRadius_ < 0.0) throw InvalidParameter("~grid_radius must be >= 0");
   if (!(markerRate_ > 0.0) || markerRate_ > 200.0) throw InvalidParameter("~marker_rate must be in (0, 200] Hz");
   if (poseQueueSize_ < 1) throw InvalidParameter("~pose_queue_size must be at least 1");
+  if (publishQueueSize_ < 1) throw InvalidParameter("~publish_queue_size must be at least 1");
   std::string mode;
   if (pnh_.getParam("detection_mode", mode)) {
     DetectionMode parsed;

@@ -93,6 +93,7 @@ class HapticDetector {
   double serviceTimeout_ = 5.0;
   bool useService_ = true;
   int poseQueueSize_ = 100;
+  int publishQueueSize_ = 100;  // contacts and forces kept per subscriber that reads too slowly
   double markerRate_ = 30.0;
   FastLevel fastLevel_ = FastLevel::Grid;
   double gridRadius_ = 0.0;  // 0: the core's default (1% of the model's diagonal)
