@@ -329,6 +329,13 @@ void SceneHapticDetector::onPose(const geometry_msgs::PoseStampedConstPtr& msg) 
       return;
     }
     p = sceneFromPose * p;
+    // A huge but finite pose (1e308) can overflow to Inf when transformed: not a position either.
+    if (!p.allFinite()) {
+      droppedNonFinite_.fetch_add(1, std::memory_order_relaxed);
+      ROS_WARN_THROTTLE(1.0, "scene_detector: dropped a pose in frame '%s' that is not finite in frame '%s' (%lu so far)",
+                        poseFrame.c_str(), config_.frameId.c_str(), static_cast<unsigned long>(droppedNonFinite_.load()));
+      return;
+    }
   }
 
   updatePoses(msg->header.stamp);
