@@ -31,6 +31,7 @@
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/test_config.h"
+#include "run_command.h"
 
 namespace clod_haptics {
 namespace {
@@ -443,20 +444,9 @@ TEST(BadInputs, ServiceRefusesBadDistancesAndKeepsServing) {
 // ------------------------------------------------------------------------------------------------
 // Broken mesh files: the node (or nodelet) exits non-zero with an ERROR naming the file, never hangs.
 
-struct Outcome {
-  int exitCode = -1;
-  std::string output;
-};
-
+using clod_haptics_test::Outcome;
 Outcome run(const std::string& command, const std::string& limit = "60") {
-  Outcome o;
-  FILE* pipe = popen(("timeout -k 5 " + limit + " " + command + " 2>&1").c_str(), "r");
-  if (!pipe) return o;
-  std::array<char, 512> buffer;
-  while (fgets(buffer.data(), buffer.size(), pipe)) o.output += buffer.data();
-  const int status = pclose(pipe);
-  o.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return o;
+  return clod_haptics_test::run(command, limit);
 }
 
 void expectCleanFailure(const Outcome& o, const std::string& file) {

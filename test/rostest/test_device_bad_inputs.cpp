@@ -12,25 +12,12 @@
 #include <string>
 
 #include "clod_haptics/test_config.h"
+#include "run_command.h"
 
 namespace {
 
-struct Outcome {
-  int exitCode = -1;
-  std::string output;
-};
-
-/** Runs a command with a time limit (timeout exits 124 when it fires); captures stdout and stderr. */
-Outcome run(const std::string& command, const std::string& limit = "30") {
-  Outcome o;
-  FILE* pipe = popen(("timeout " + limit + " " + command + " 2>&1").c_str(), "r");
-  if (!pipe) return o;
-  std::array<char, 512> buffer;
-  while (fgets(buffer.data(), buffer.size(), pipe)) o.output += buffer.data();
-  const int status = pclose(pipe);
-  o.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return o;
-}
+using clod_haptics_test::Outcome;
+using clod_haptics_test::run;
 
 void expectCleanFailure(const Outcome& o, const std::string& mention) {
   EXPECT_EQ(o.exitCode, 1) << "expected exit code 1 (124: hung, -1: crashed): " << o.output;
