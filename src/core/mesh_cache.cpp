@@ -13,6 +13,7 @@
 
 #include <unistd.h>
 
+#include "clod_haptics/core/atomic_file.h"
 #include "clod_haptics/core/errors.h"
 
 namespace clod_haptics {
@@ -205,18 +206,8 @@ TriangleMesh MeshCache::load(const std::string& path, const MeshLoadOptions& opt
   }
   TriangleMesh mesh = loadMesh(path, options);
   parsed_.fetch_add(1);
-  std::ostringstream tmp;
-  tmp << out.path << ".tmp." << ::getpid() << "." << std::this_thread::get_id();
-  try {
-    std::filesystem::create_directories(directory_, ec);
-    writeMeshBinary(mesh, key, tmp.str());
-    std::filesystem::rename(tmp.str(), out.path, ec);
-    if (ec) throw FormatError("cannot rename '" + tmp.str() + "' to '" + out.path + "': " + ec.message());
-  } catch (const FormatError& e) {
-    std::filesystem::remove(tmp.str(), ec);
-    if (!out.problem.empty()) out.problem += "; ";
-    out.problem += std::string("not stored: ") + e.what();
-  }
+  storeAtomically(
+      directory_, out.path, [&](const std::string& tmp) { writeMeshBinary(mesh, key, tmp); }, out.problem);
   out.ms = elapsed();
   return mesh;
 }

@@ -14,6 +14,7 @@
 
 #include <unistd.h>
 
+#include "clod_haptics/core/atomic_file.h"
 #include "clod_haptics/core/errors.h"
 
 namespace clod_haptics {
@@ -308,19 +309,8 @@ std::shared_ptr<const ClodSphereSet> SphereSetCache::getOrBuild(const TriangleMe
   }
 
   auto set = std::make_shared<const ClodSphereSet>(build());
-  // Write under a name no other writer uses, then rename: readers see a whole file or none.
-  std::ostringstream tmp;
-  tmp << out.path << ".tmp." << ::getpid() << "." << std::this_thread::get_id();
-  try {
-    std::filesystem::create_directories(directory_, ec);
-    writeSphereSetBinary(*set, meshHash, tmp.str());
-    std::filesystem::rename(tmp.str(), out.path, ec);
-    if (ec) throw FormatError("cannot rename '" + tmp.str() + "' to '" + out.path + "': " + ec.message());
-  } catch (const FormatError& e) {
-    std::filesystem::remove(tmp.str(), ec);
-    if (!out.problem.empty()) out.problem += "; ";
-    out.problem += std::string("not stored: ") + e.what();
-  }
+  storeAtomically(
+      directory_, out.path, [&](const std::string& tmp) { writeSphereSetBinary(*set, meshHash, tmp); }, out.problem);
   out.ms = elapsed();
   return set;
 }
