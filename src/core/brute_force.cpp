@@ -9,7 +9,7 @@ namespace clod_haptics {
 
 ContactResult bruteForceQuery(const TriangleMesh& mesh, const Vec3& p, double r) {
   ContactResult out;
-  if (!p.allFinite() || !std::isfinite(r) || r < 0.0 || r > kMaxRadius) return out;
+  if (!validPointer(p, r)) return out;
   double best = std::numeric_limits<double>::infinity();
   std::size_t bestTri = 0;
   Vec3 bestPoint = Vec3::Zero();

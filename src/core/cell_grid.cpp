@@ -147,9 +147,7 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
   }
 
   // The first sphere listing each triangle (every triangle is listed: the coverage invariant).
-  std::vector<std::uint32_t> sphereOf(mesh.size(), std::numeric_limits<std::uint32_t>::max());
-  for (std::size_t s = set.size(); s-- > 0;)
-    for (const std::uint32_t* t = set.begin(s); t != set.end(s); ++t) sphereOf[*t] = static_cast<std::uint32_t>(s);
+  const std::vector<std::uint32_t> sphereOf = firstSphereOfTriangles(set, mesh.size());
 
   std::size_t cells = 0;
   for (std::size_t i = 0; i < candidates.size(); ++i) cells += (i == 0 || candidates[i].key != candidates[i - 1].key);

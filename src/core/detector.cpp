@@ -68,9 +68,7 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
     sphereData_[4 * i + 3] = s.radii[i] + pad_;
   }
 
-  sphereOfTriangle_.assign(m.size(), kNone);
-  for (std::size_t i = s.size(); i-- > 0;)
-    for (const std::uint32_t* t = s.begin(i); t != s.end(i); ++t) sphereOfTriangle_[*t] = static_cast<std::uint32_t>(i);
+  sphereOfTriangle_ = firstSphereOfTriangles(s, m.size());
 
   if (fastLevel_ == FastLevel::Grid) {
     const double radius = gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * bounds.diagonal().norm();
@@ -259,7 +257,7 @@ void ClodDetector::forEachHitSphere(double px, double py, double pz, const doubl
 void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
                          QueryCache* cache) const noexcept {
   out = ContactResult{};
-  if (!p.allFinite() || !std::isfinite(r) || r < 0.0 || r > kMaxRadius) return;
+  if (!validPointer(p, r)) return;
   Best best;
   best.d2 = r * r;
   best.reach = r;
@@ -320,7 +318,7 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
 }
 
 std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcept {
-  if (!p.allFinite() || !std::isfinite(r) || r < 0.0 || r > kMaxRadius) return 0;
+  if (!validPointer(p, r)) return 0;
   if (!grid_.empty() && r <= grid_.radius()) {
     const CellGrid::Cell* cell = grid_.find(grid_.keyOf(p));
     return cell ? cell->spheres : 0;
@@ -334,7 +332,7 @@ std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcep
 
 void ClodDetector::hitSpheres(const Vec3& p, double r, std::vector<std::uint32_t>& out) const {
   out.clear();
-  if (!p.allFinite() || !std::isfinite(r) || r < 0.0 || r > kMaxRadius) return;
+  if (!validPointer(p, r)) return;
   const double reach = r;
   forEachHitSphere(p.x(), p.y(), p.z(), reach, false, [&](std::uint32_t i) { out.push_back(i); });
   std::sort(out.begin(), out.end());

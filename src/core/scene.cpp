@@ -87,7 +87,7 @@ void SceneDetector::setActive(std::uint32_t i, bool active) {
 void SceneDetector::query(const Vec3& p, double r, DetectionMode mode, SceneContact* contacts, std::size_t capacity,
                           SceneQueryResult& out, QueryCache* caches) const noexcept {
   out = SceneQueryResult();
-  if (!p.allFinite() || !std::isfinite(r) || r < 0.0) return;
+  if (!validPointer(p, r)) return;
   const std::size_t n = objects_.size();
   out.objectsInactive = inactive_;
   // Scene-level rejection, a block of objects at a time: first the sphere test for the whole block

@@ -8,11 +8,8 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
-#include <thread>
 #include <vector>
 
-#include <unistd.h>
 
 #include "clod_haptics/core/atomic_file.h"
 #include "clod_haptics/core/errors.h"

@@ -15,6 +15,13 @@ void requireNonNegative(double value, const char* what) {
     throw InvalidParameter(std::string(what) + " must be finite and >= 0, got " + std::to_string(value));
 }
 
+std::vector<std::uint32_t> firstSphereOfTriangles(const ClodSphereSet& set, std::size_t triangles) {
+  std::vector<std::uint32_t> first(triangles, std::numeric_limits<std::uint32_t>::max());
+  for (std::size_t s = set.size(); s-- > 0;)  // backwards, so the lowest sphere index stays
+    for (const std::uint32_t* t = set.begin(s); t != set.end(s); ++t) first[*t] = static_cast<std::uint32_t>(s);
+  return first;
+}
+
 ClodBuilder::ClodBuilder(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const SpherePlacement> placement,
                          std::shared_ptr<const Clustering> clustering)
     : mesh_(std::move(mesh)), clustering_(std::move(clustering)) {

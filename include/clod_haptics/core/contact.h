@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include "clod_haptics/core/mesh.h"
@@ -11,6 +12,11 @@ namespace clod_haptics {
  * distances could compare inf <= inf. A larger radius is invalid input and answers no contact.
  */
 constexpr double kMaxRadius = 1e150;
+
+/** \brief Whether (p, r) is a pointer a query answers: finite centre, 0 <= r <= kMaxRadius. */
+inline bool validPointer(const Vec3& p, double r) {
+  return p.allFinite() && std::isfinite(r) && r >= 0.0 && r <= kMaxRadius;
+}
 
 /** \brief The precise level of the two-level detection (paper section 3.3). */
 enum class DetectionMode : std::uint8_t {

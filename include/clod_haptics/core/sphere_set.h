@@ -86,6 +86,12 @@ class ClodBuilder {
   PlacementStats placementStats_;
 };
 
+/**
+ * \brief For each of the mesh's triangles, the first sphere of the set that lists it (UINT32_MAX for
+ * a triangle no sphere lists, which the coverage invariant rules out for a built set).
+ */
+std::vector<std::uint32_t> firstSphereOfTriangles(const ClodSphereSet& set, std::size_t triangles);
+
 /** \brief Throws InvalidParameter unless d is finite and not negative; what names the parameter. */
 void requireNonNegative(double value, const char* what);
 
