@@ -370,7 +370,9 @@ TEST_F(SceneDetectorTest, MarkersOnceForMeshesAndOnlyOnChange) {
   {
     std::lock_guard<std::mutex> lock(m);
     for (const auto& marker : arrays.front()->markers)
-      if (marker.ns == "scene_mesh") EXPECT_EQ(marker.header.frame_id, config_.objects.at(marker.id).frameId);
+      if (marker.ns == "scene_mesh") {
+        EXPECT_EQ(marker.header.frame_id, config_.objects.at(marker.id).frameId);
+      }
   }
   // A contact shows up as a contact marker with the object's index as id.
   const Vec3 p = worldFromObject(0) * meshes_[0]->vertices[0];
