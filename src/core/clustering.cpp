@@ -42,42 +42,54 @@ std::uint64_t hashKey(const CellKey& k) {
   return h ^ (h >> 29);
 }
 
-// Open-addressing table from a cell to its run of points (points sorted by cell).
+// Open-addressing table that numbers cells in the order they are first inserted. The slots hold only
+// the cell number (4 bytes) and the keys live once in a dense array, so the table costs a few bytes per
+// cell, not per point: the old table of (key, run, flag) slots sized for every point was the largest
+// allocation of a build (up to 320 bytes per triangle, most of it page clearing).
 class CellTable {
  public:
-  explicit CellTable(std::size_t cells) {
-    std::size_t cap = 16;
-    while (cap < 2 * cells) cap <<= 1;
-    slots_.assign(cap, Slot{});
+  static constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+
+  explicit CellTable(std::size_t expectedCells) {
+    std::size_t cap = 64;
+    while (cap < 2 * expectedCells) cap <<= 1;
+    slots_.assign(cap, kNone);
     mask_ = cap - 1;
+    keys_.reserve(expectedCells);
   }
-  // Returns the slot of key, inserting it when absent.
-  std::size_t insert(const CellKey& key) {
+  // The number of key's cell, numbering it when new.
+  std::uint32_t insert(const CellKey& key) {
+    if (2 * (keys_.size() + 1) > slots_.size()) grow();
     std::size_t i = hashKey(key) & mask_;
-    while (slots_[i].used && !(slots_[i].key == key)) i = (i + 1) & mask_;
-    if (!slots_[i].used) {
-      slots_[i].used = true;
-      slots_[i].key = key;
-    }
-    return i;
+    for (; slots_[i] != kNone; i = (i + 1) & mask_)
+      if (keys_[slots_[i]] == key) return slots_[i];
+    slots_[i] = static_cast<std::uint32_t>(keys_.size());
+    keys_.push_back(key);
+    return slots_[i];
   }
-  const std::size_t* find(const CellKey& key) const {
-    std::size_t i = hashKey(key) & mask_;
-    while (slots_[i].used) {
-      if (slots_[i].key == key) return &slots_[i].run;
-      i = (i + 1) & mask_;
-    }
-    return nullptr;
+  // The number of key's cell, or kNone.
+  std::uint32_t find(const CellKey& key) const {
+    for (std::size_t i = hashKey(key) & mask_; slots_[i] != kNone; i = (i + 1) & mask_)
+      if (keys_[slots_[i]] == key) return slots_[i];
+    return kNone;
   }
-  std::size_t& run(std::size_t slot) { return slots_[slot].run; }
+  std::size_t size() const { return keys_.size(); }
+  const CellKey& key(std::uint32_t cell) const { return keys_[cell]; }
 
  private:
-  struct Slot {
-    CellKey key{0, 0, 0};
-    std::size_t run = 0;
-    bool used = false;
-  };
-  std::vector<Slot> slots_;
+  void grow() {
+    std::vector<std::uint32_t> slots(2 * slots_.size(), kNone);
+    const std::size_t mask = slots.size() - 1;
+    for (std::uint32_t c = 0; c < keys_.size(); ++c) {
+      std::size_t i = hashKey(keys_[c]) & mask;
+      while (slots[i] != kNone) i = (i + 1) & mask;
+      slots[i] = c;
+    }
+    slots_.swap(slots);
+    mask_ = mask;
+  }
+  std::vector<std::uint32_t> slots_;
+  std::vector<CellKey> keys_;
   std::size_t mask_ = 0;
 };
 
@@ -112,30 +124,24 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, UnionFind& uf) {
   // Never finer than 1e-12 of the extent: keeps cell coordinates far from integer overflow.
   const double cell = std::max(d / std::sqrt(3.0) * (1.0 - 1e-6), extent * 1e-12);
   const int reach = static_cast<int>(std::ceil(d / cell));  // 2 for the usual cell size
-  std::vector<CellKey> keys(n);
-  for (std::size_t i = 0; i < n; ++i) keys[i] = cellOf(points[i], box.min(), cell);
-  // Bucket the points by cell (expected O(n)): number the cells, count, prefix sum, fill.
-  CellTable table(n);
-  std::vector<std::size_t> runOf(n);
-  std::vector<std::size_t> runCount;
-  std::vector<CellKey> runKey;
-  for (std::size_t i = 0; i < n; ++i) {
-    std::size_t& r = table.run(table.insert(keys[i]));
-    if (r == 0) {
-      runCount.push_back(0);
-      runKey.push_back(keys[i]);
-      r = runCount.size();  // 1-based so 0 means unnumbered
-    }
-    runOf[i] = r - 1;
-    ++runCount[r - 1];
-  }
-  const std::size_t cells = runCount.size();
-  std::vector<std::size_t> runStart(cells + 1, 0);
-  for (std::size_t c = 0; c < cells; ++c) runStart[c + 1] = runStart[c] + runCount[c];
-  std::vector<std::uint32_t> sorted(n);
+  const Vec3 origin = box.min();
+  // Bucket the points by cell (expected O(n)): number the cells, count, prefix sum, fill. Cells are
+  // numbered in the order of their first point and each run keeps ascending point order.
+  CellTable table(std::min<std::size_t>(n, 1024));
+  std::vector<std::uint32_t> sorted(n);  // first the cell of each point, then the points by cell
+  for (std::size_t i = 0; i < n; ++i) sorted[i] = table.insert(cellOf(points[i], origin, cell));
+  const std::size_t cells = table.size();
+  std::vector<std::uint32_t> runStart(cells + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) ++runStart[sorted[i] + 1];
+  for (std::size_t c = 0; c < cells; ++c) runStart[c + 1] += runStart[c];
   {
-    std::vector<std::size_t> fill(runStart.begin(), runStart.end() - 1);
-    for (std::size_t i = 0; i < n; ++i) sorted[fill[runOf[i]]++] = static_cast<std::uint32_t>(i);
+    std::vector<std::uint32_t> cellOfPoint;
+    cellOfPoint.swap(sorted);
+    sorted.resize(n);
+    // Fill through runStart shifted by one cell: afterwards runStart[c + 1] is the end of cell c again.
+    std::vector<std::uint32_t>& fill = runStart;
+    for (std::size_t c = cells; c > 0; --c) fill[c] = fill[c - 1];
+    for (std::size_t i = 0; i < n; ++i) sorted[fill[cellOfPoint[i] + 1]++] = static_cast<std::uint32_t>(i);
   }
   const double d2 = d * d;
   // d * d underflows for d below ~1e-154 (and overflows above ~1e154): compare overflow-safe norms there.
@@ -145,7 +151,7 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, UnionFind& uf) {
   };
 
   // Within each cell: link to the first point; collect the loose ones.
-  std::vector<char> loose(n, 0);
+  std::vector<unsigned char> loose(n, 0);
   std::vector<std::uint32_t> looseList;
   for (std::size_t c = 0; c < cells; ++c) {
     const std::uint32_t first = sorted[runStart[c]];
@@ -171,14 +177,13 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, UnionFind& uf) {
   };
   // Between cells: each unordered pair of neighbouring cells once (the lexicographically forward half).
   for (std::size_t c = 0; c < cells; ++c) {
-    const CellKey k = runKey[c];
+    const CellKey k = table.key(static_cast<std::uint32_t>(c));
     const std::uint32_t repA = sorted[runStart[c]];
     for (int dx = 0; dx <= reach; ++dx)
       for (int dy = (dx == 0 ? 0 : -reach); dy <= reach; ++dy)
         for (int dz = (dx == 0 && dy == 0 ? 1 : -reach); dz <= reach; ++dz) {
-          const std::size_t* run = table.find({k.x + dx, k.y + dy, k.z + dz});
-          if (run == nullptr) continue;
-          const std::size_t c2 = *run - 1;
+          const std::uint32_t c2 = table.find({k.x + dx, k.y + dy, k.z + dz});
+          if (c2 == CellTable::kNone) continue;
           const std::uint32_t repB = sorted[runStart[c2]];
           if (apart(c, c2) || uf.find(repA) == uf.find(repB)) continue;
           bool linked = false;
@@ -203,13 +208,13 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, UnionFind& uf) {
   }
   // Loose points: test against every point around them, in both directions.
   for (const std::uint32_t i : looseList) {
-    const CellKey k = keys[i];
+    const CellKey k = cellOf(points[i], origin, cell);
     for (int dx = -reach; dx <= reach; ++dx)
       for (int dy = -reach; dy <= reach; ++dy)
         for (int dz = -reach; dz <= reach; ++dz) {
-          const std::size_t* run = table.find({k.x + dx, k.y + dy, k.z + dz});
-          if (run == nullptr) continue;
-          for (std::size_t b = runStart[*run - 1]; b < runStart[*run]; ++b)
+          const std::uint32_t c2 = table.find({k.x + dx, k.y + dy, k.z + dz});
+          if (c2 == CellTable::kNone) continue;
+          for (std::size_t b = runStart[c2]; b < runStart[c2 + 1]; ++b)
             if (sorted[b] != i && close(i, sorted[b])) uf.unite(i, sorted[b]);
         }
   }
@@ -223,13 +228,12 @@ std::uint32_t SingleLinkClustering::cluster(const std::vector<Vec3>& points, dou
   if (n == 0) return 0;
   UnionFind uf(n);
   if (d > 0.0) linkCloserThan(points, d, uf);
-  // Label clusters in the order of their first point.
-  std::vector<std::uint32_t> id(n, std::numeric_limits<std::uint32_t>::max());
+  // Label clusters in the order of their first point. The root of a cluster is its smallest index
+  // (unite keeps the smaller root), i.e. its first point, so it is labelled before any other member.
   std::uint32_t count = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t root = uf.find(static_cast<std::uint32_t>(i));
-    if (id[root] == std::numeric_limits<std::uint32_t>::max()) id[root] = count++;
-    labels[i] = id[root];
+    labels[i] = root == i ? count++ : labels[root];
   }
   return count;
 }
@@ -247,14 +251,9 @@ std::uint32_t CubeClustering::cluster(const std::vector<Vec3>& points, double d,
   const double extent =
       std::max({box.sizes().maxCoeff(), box.min().cwiseAbs().maxCoeff(), box.max().cwiseAbs().maxCoeff()});
   const double cell = std::max(d, extent * 1e-12);
-  CellTable table(n);
-  std::uint32_t count = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    std::size_t& run = table.run(table.insert(cellOf(points[i], box.min(), cell)));
-    if (run == 0) run = ++count;  // 1-based: 0 marks a new cube
-    labels[i] = static_cast<std::uint32_t>(run - 1);
-  }
-  return count;
+  CellTable table(std::min<std::size_t>(n, 1024));  // numbers the cubes in the order of their first point
+  for (std::size_t i = 0; i < n; ++i) labels[i] = table.insert(cellOf(points[i], box.min(), cell));
+  return static_cast<std::uint32_t>(table.size());
 }
 
 std::shared_ptr<const Clustering> makeClustering(const std::string& name) {

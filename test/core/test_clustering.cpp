@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -185,6 +187,47 @@ TEST(SingleLinkClustering, BadDistanceThrowsInvalidParameter) {
   for (double d : {-1e-12, -1.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(),
                    -std::numeric_limits<double>::infinity()})
     EXPECT_THROW(clustering.cluster(pts, d, labels), InvalidParameter) << "d = " << d;
+}
+
+TEST(SingleLinkClustering, EqualsNaiveWithManyMoreCellsThanTheTableStartsWith) {
+  // The cell table starts small and grows: thousands of occupied cells (most points alone in theirs),
+  // with exact duplicates mixed in, still give the naive partition.
+  std::mt19937_64 rng(300);
+  auto pts = uniformPoints(rng, 5000, 1.0, Vec3::Constant(-0.5));
+  pts.insert(pts.end(), pts.begin() + 1000, pts.begin() + 1400);
+  for (double d : {1e-9, 2e-3, 0.02}) expectSameAsNaive(pts, d, "many cells");
+}
+
+// The cube rule read literally, written here: the cube index of each point along each axis from the
+// points' bounding box, clusters numbered in the order of their first point.
+std::vector<std::uint32_t> naiveCubes(const std::vector<Vec3>& points, double d) {
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+  for (const Vec3& p : points) lo = lo.cwiseMin(p);
+  std::vector<std::array<long long, 3>> seen;
+  std::vector<std::uint32_t> labels;
+  for (const Vec3& p : points) {
+    std::array<long long, 3> key{};
+    for (int k = 0; k < 3; ++k) key[k] = static_cast<long long>(std::floor((p[k] - lo[k]) / d));
+    const auto it = std::find(seen.begin(), seen.end(), key);
+    labels.push_back(static_cast<std::uint32_t>(it - seen.begin()));
+    if (it == seen.end()) seen.push_back(key);
+  }
+  return labels;
+}
+
+TEST(CubeClustering, EqualsTheCubeRuleWrittenOut) {
+  std::mt19937_64 rng(400);
+  const auto pts = clusteredPoints(rng, 4000, 7, 0.05);
+  CubeClustering clustering;
+  std::vector<std::uint32_t> labels;
+  for (double d : {0.003, 0.01, 0.02, 0.08, 0.5}) {
+    const auto expected = naiveCubes(pts, d);
+    const std::uint32_t k = clustering.cluster(pts, d, labels);
+    EXPECT_EQ(k, *std::max_element(expected.begin(), expected.end()) + 1) << "d = " << d;
+    EXPECT_EQ(labels, expected) << "d = " << d;
+  }
+  ASSERT_EQ(clustering.cluster(pts, 0.0, labels), pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) EXPECT_EQ(labels[i], i);
 }
 
 }  // namespace
