@@ -11,6 +11,8 @@
 #include <stdexcept>
 #include <thread>
 
+#include "clod_haptics/device/pose_msg.h"
+
 namespace clod_haptics {
 namespace device {
 
@@ -148,13 +150,7 @@ void BagReplay::run() {
       std::this_thread::sleep_until(due);
       pose.header.stamp = ros::Time::now();
       pose.header.seq = static_cast<std::uint32_t>(published_);
-      pose.pose.position.x = s.position.x();
-      pose.pose.position.y = s.position.y();
-      pose.pose.position.z = s.position.z();
-      pose.pose.orientation.w = s.orientation.w();
-      pose.pose.orientation.x = s.orientation.x();
-      pose.pose.orientation.y = s.orientation.y();
-      pose.pose.orientation.z = s.orientation.z();
+      toPoseMsg(s.position, s.orientation, pose.pose);
       posePub_.publish(pose);
       ++published_;
       if (haveJoints && s.time >= nextJoint) {

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "clod_haptics/device/pose_msg.h"
 #include "clod_haptics/device/simulated_device.h"
 #ifdef CLOD_WITH_OPENHAPTICS
 #include "clod_haptics/device/openhaptics_device.h"
@@ -182,13 +183,7 @@ void PhantomBridge::tick(double now) {
     geometry_msgs::PoseStamped pose;
     pose.header.stamp = stamp;
     pose.header.frame_id = params_.frameId;
-    pose.pose.position.x = state.position.x();
-    pose.pose.position.y = state.position.y();
-    pose.pose.position.z = state.position.z();
-    pose.pose.orientation.w = state.orientation.w();
-    pose.pose.orientation.x = state.orientation.x();
-    pose.pose.orientation.y = state.orientation.y();
-    pose.pose.orientation.z = state.orientation.z();
+    toPoseMsg(state.position, state.orientation, pose.pose);
     posePub_.publish(pose);
 
     sensor_msgs::JointState joints;
