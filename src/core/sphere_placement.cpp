@@ -40,13 +40,31 @@ struct Hit {
 
 }  // namespace
 
-std::vector<PlacedSphere> PaperPlacement::place(const TriangleMesh& mesh, PlacementStats* stats) const {
-  const auto start = std::chrono::steady_clock::now();
+PlacedCentres SpherePlacement::placeCentres(const TriangleMesh& mesh, PlacementStats* stats) const {
+  const std::vector<PlacedSphere> placed = place(mesh, stats);
+  PlacedCentres out;
+  out.centres.reserve(placed.size());
+  out.wrapped.reserve(placed.size());
+  for (const PlacedSphere& s : placed) {
+    out.centres.push_back(s.centre);
+    out.wrapped.push_back(s.triangle);
+  }
+  return out;
+}
+
+// Per triangle: the opposite triangle (or UINT32_MAX) and the relaxation steps taken.
+struct PaperPlacement::Opposites {
+  std::vector<std::uint32_t> opposite;
+  std::vector<std::uint16_t> steps;
+};
+
+PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) const {
   const std::size_t n = mesh.size();
-  const TriangleBvh bvh(mesh);
+  unsigned threads = threads_ ? threads_ : std::max(1u, std::thread::hardware_concurrency());
+  threads = static_cast<unsigned>(std::min<std::size_t>(threads, std::max<std::size_t>(1, n / 1024)));
+  const TriangleBvh bvh(mesh, 4, threads);  // freed on return, before the spheres are written
   const double minT = 1e-12 * mesh.diagonal();  // ignore hits at the origin itself (coplanar duplicates)
 
-  // Per triangle: the opposite triangle (or UINT32_MAX) and the relaxation steps taken.
   std::vector<std::uint32_t> opposite(n, std::numeric_limits<std::uint32_t>::max());
   std::vector<std::uint16_t> steps(n, 0);
   std::atomic<std::size_t> next{0};
@@ -57,7 +75,10 @@ std::vector<PlacedSphere> PaperPlacement::place(const TriangleMesh& mesh, Placem
       if (begin >= n) return;
       if (reporter && progress_) progress_(static_cast<double>(begin) / static_cast<double>(n));
       const std::size_t end = std::min(n, begin + kChunk);
-      for (std::size_t t = begin; t < end; ++t) {
+      // Rays in the hierarchy's leaf order: consecutive rays start close together and walk mostly the
+      // same nodes, which stay in cache.
+      for (std::size_t j = begin; j < end; ++j) {
+        const std::uint32_t t = bvh.order()[j];
         const Vec3& normal = mesh.normals[t];
         if (normal.isZero(0.0)) continue;
         const Vec3 origin = mesh.centroid(t);
@@ -128,19 +149,24 @@ std::vector<PlacedSphere> PaperPlacement::place(const TriangleMesh& mesh, Placem
       }
     }
   };
-  unsigned threads = threads_ ? threads_ : std::max(1u, std::thread::hardware_concurrency());
-  threads = static_cast<unsigned>(std::min<std::size_t>(threads, std::max<std::size_t>(1, n / 1024)));
   std::vector<std::thread> pool;
   for (unsigned i = 1; i < threads; ++i) pool.emplace_back(worker, false);
   worker(true);
   for (auto& th : pool) th.join();
   if (progress_) progress_(1.0);
+  return {std::move(opposite), std::move(steps)};
+}
 
-  PlacementStats s;
-  s.triangles = n;
-  std::vector<PlacedSphere> spheres;
-  spheres.reserve(2 * n);
-  for (std::size_t t = 0; t < n; ++t) {
+namespace {
+
+// Calls emit(centre, triangle) for the placed spheres in order (two per paired triangle, one at the
+// centroid otherwise), fills the counts of s and returns the number of spheres.
+template <class Emit>
+std::size_t forEachSphere(const TriangleMesh& mesh, const std::vector<std::uint32_t>& opposite,
+                          const std::vector<std::uint16_t>& steps, PlacementStats& s, Emit&& emit) {
+  s.triangles = mesh.size();
+  std::size_t count = 0;
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
     const Vec3 c0 = mesh.centroid(t);
     const std::uint32_t o = opposite[t];
     if (o == std::numeric_limits<std::uint32_t>::max()) {
@@ -148,20 +174,57 @@ std::vector<PlacedSphere> PaperPlacement::place(const TriangleMesh& mesh, Placem
         ++s.degenerate;
       else
         ++s.unpaired;
-      spheres.push_back({c0, farthestVertex(mesh, t, c0), static_cast<std::uint32_t>(t)});
+      emit(c0, static_cast<std::uint32_t>(t));
+      ++count;
       continue;
     }
     ++s.paired;
     s.relaxations += steps[t];
     const Vec3 c1 = mesh.centroid(o);
-    const Vec3 quarter = c0 + 0.25 * (c1 - c0);
-    const Vec3 threeQuarter = c0 + 0.75 * (c1 - c0);
-    spheres.push_back({quarter, farthestVertex(mesh, t, quarter), static_cast<std::uint32_t>(t)});
-    spheres.push_back({threeQuarter, farthestVertex(mesh, o, threeQuarter), o});
+    emit(Vec3(c0 + 0.25 * (c1 - c0)), static_cast<std::uint32_t>(t));
+    emit(Vec3(c0 + 0.75 * (c1 - c0)), o);
+    count += 2;
   }
+  return count;
+}
+
+std::size_t sphereCount(const std::vector<std::uint32_t>& opposite) {
+  std::size_t count = 0;
+  for (const std::uint32_t o : opposite) count += o == std::numeric_limits<std::uint32_t>::max() ? 1 : 2;
+  return count;
+}
+
+}  // namespace
+
+std::vector<PlacedSphere> PaperPlacement::place(const TriangleMesh& mesh, PlacementStats* stats) const {
+  const auto start = std::chrono::steady_clock::now();
+  const Opposites found = castRays(mesh);
+  std::vector<PlacedSphere> spheres;
+  spheres.reserve(sphereCount(found.opposite));
+  PlacementStats s;
+  forEachSphere(mesh, found.opposite, found.steps, s, [&](const Vec3& centre, std::uint32_t t) {
+    spheres.push_back({centre, farthestVertex(mesh, t, centre), t});
+  });
   s.milliseconds = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   if (stats) *stats = s;
   return spheres;
+}
+
+PlacedCentres PaperPlacement::placeCentres(const TriangleMesh& mesh, PlacementStats* stats) const {
+  const auto start = std::chrono::steady_clock::now();
+  const Opposites found = castRays(mesh);
+  PlacedCentres out;
+  const std::size_t count = sphereCount(found.opposite);
+  out.centres.reserve(count);
+  out.wrapped.reserve(count);
+  PlacementStats s;
+  forEachSphere(mesh, found.opposite, found.steps, s, [&](const Vec3& centre, std::uint32_t t) {
+    out.centres.push_back(centre);
+    out.wrapped.push_back(t);
+  });
+  s.milliseconds = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  if (stats) *stats = s;
+  return out;
 }
 
 }  // namespace clod_haptics

@@ -1,7 +1,9 @@
 #include "clod_haptics/core/triangle_bvh.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
+#include <thread>
 
 namespace clod_haptics {
 namespace {
@@ -10,55 +12,91 @@ namespace {
 // area(left) * count(left) + area(right) * count(right), the expected cost of a ray through the node.
 constexpr int kBins = 16;
 
-double halfArea(const Eigen::AlignedBox3d& b) {
-  if (b.isEmpty()) return 0.0;
-  const Vec3 e = b.sizes();
-  return e.x() * e.y() + e.y() * e.z() + e.z() * e.x();
+float down(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
 }
+float up(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
+// A float box; the triangles' boxes are rounded outward, so unions of them stay conservative.
+struct Box {
+  float lo[3] = {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity(),
+                 std::numeric_limits<float>::infinity()};
+  float hi[3] = {-std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
+                 -std::numeric_limits<float>::infinity()};
+  void extend(const Box& b) {
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], b.lo[k]);
+      hi[k] = std::max(hi[k], b.hi[k]);
+    }
+  }
+  void extend(const float* p) {
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], p[k]);
+      hi[k] = std::max(hi[k], p[k]);
+    }
+  }
+  bool empty() const { return lo[0] > hi[0]; }
+  double halfArea() const {
+    if (empty()) return 0.0;
+    const double x = double(hi[0]) - lo[0], y = double(hi[1]) - lo[1], z = double(hi[2]) - lo[2];
+    return x * y + y * z + z * x;
+  }
+};
+
+// What the build keeps per triangle: its box and its box centre (the binning key), 36 bytes.
+struct Prim {
+  Box box;
+  float centre[3];
+};
 
 struct Build {
   const TriangleMesh& mesh;
-  std::vector<Vec3> centroids;
-  std::vector<Eigen::AlignedBox3d> boxes;
-  std::vector<TriangleBvh::Node>& nodes;
+  const std::vector<Prim>& prims;
   std::vector<std::uint32_t>& order;
   int leafSize;
 
   // Partitions order[begin, end) and returns the split point; falls back to the median when the
-  // centroids coincide along the axis or the heuristic leaves one side empty.
-  std::uint32_t split(std::uint32_t begin, std::uint32_t end, int axis, const Eigen::AlignedBox3d& cbox) {
-    const double lo = cbox.min()[axis], extent = cbox.sizes()[axis];
+  // centres coincide along the axis or the heuristic leaves one side empty.
+  std::uint32_t split(std::uint32_t begin, std::uint32_t end, const Box& cbox) const {
+    int axis = 0;
+    for (int k = 1; k < 3; ++k)
+      if (double(cbox.hi[k]) - cbox.lo[k] > double(cbox.hi[axis]) - cbox.lo[axis]) axis = k;
+    const double lo = cbox.lo[axis], extent = double(cbox.hi[axis]) - cbox.lo[axis];
     auto median = [&]() {
       const std::uint32_t mid = begin + (end - begin) / 2;
       std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end,
-                       [&](std::uint32_t a, std::uint32_t b) { return centroids[a][axis] < centroids[b][axis]; });
+                       [&](std::uint32_t a, std::uint32_t b) { return prims[a].centre[axis] < prims[b].centre[axis]; });
       return mid;
     };
-    if (!(extent > 0.0) || end - begin < 16) return median();
+    if (!(extent > 0.0) || !std::isfinite(extent) || end - begin < 16) return median();
     const double scale = kBins / extent;
     auto binOf = [&](std::uint32_t t) {
-      return std::min(kBins - 1, static_cast<int>((centroids[t][axis] - lo) * scale));
+      return std::min(kBins - 1, static_cast<int>((prims[t].centre[axis] - lo) * scale));
     };
-    Eigen::AlignedBox3d bins[kBins];
+    Box bins[kBins];
     std::uint32_t counts[kBins] = {};
-    for (int i = 0; i < kBins; ++i) bins[i].setEmpty();
     for (std::uint32_t i = begin; i < end; ++i) {
       const int b = binOf(order[i]);
-      bins[b].extend(boxes[order[i]]);
+      bins[b].extend(prims[order[i]].box);
       ++counts[b];
     }
     double rightArea[kBins];
     std::uint32_t rightCount[kBins];
-    Eigen::AlignedBox3d acc;
-    acc.setEmpty();
+    Box acc;
     std::uint32_t n = 0;
     for (int i = kBins - 1; i > 0; --i) {
       acc.extend(bins[i]);
       n += counts[i];
-      rightArea[i] = halfArea(acc);
+      rightArea[i] = acc.halfArea();
       rightCount[i] = n;
     }
-    acc.setEmpty();
+    acc = Box();
     n = 0;
     double bestCost = std::numeric_limits<double>::infinity();
     int bestSplit = -1;
@@ -66,7 +104,7 @@ struct Build {
       acc.extend(bins[i - 1]);
       n += counts[i - 1];
       if (n == 0 || rightCount[i] == 0) continue;
-      const double cost = halfArea(acc) * n + rightArea[i] * rightCount[i];
+      const double cost = acc.halfArea() * n + rightArea[i] * rightCount[i];
       if (cost < bestCost) {
         bestCost = cost;
         bestSplit = i;
@@ -78,55 +116,105 @@ struct Build {
     return static_cast<std::uint32_t>(mid - order.begin());
   }
 
-  std::uint32_t build(std::uint32_t begin, std::uint32_t end) {
-    Eigen::AlignedBox3d box, cbox, nbox;
-    for (std::uint32_t i = begin; i < end; ++i) {
-      box.extend(boxes[order[i]]);
-      cbox.extend(centroids[order[i]]);
-      nbox.extend(mesh.normals[order[i]]);
-    }
+  Box centreBox(std::uint32_t begin, std::uint32_t end) const {
+    Box c;
+    for (std::uint32_t i = begin; i < end; ++i) c.extend(prims[order[i]].centre);
+    return c;
+  }
+
+  // Builds order[begin, end) into nodes (indices local to nodes, left child next to its parent) and
+  // returns the node's index; bounds are filled bottom up from the leaves.
+  std::uint32_t build(std::vector<TriangleBvh::Node>& nodes, std::uint32_t begin, std::uint32_t end) const {
     const std::uint32_t self = static_cast<std::uint32_t>(nodes.size());
-    TriangleBvh::Node node{};
-    for (int k = 0; k < 3; ++k) {
-      node.lo[k] = box.min()[k];
-      node.hi[k] = box.max()[k];
-      // Outward by more than float rounding: bounds stay bounds after the cast.
-      node.normalLo[k] = static_cast<float>(nbox.min()[k] - 1e-6);
-      node.normalHi[k] = static_cast<float>(nbox.max()[k] + 1e-6);
-    }
-    nodes.push_back(node);
+    nodes.emplace_back();
     if (end - begin <= static_cast<std::uint32_t>(leafSize)) {
-      nodes[self].first = begin;
-      nodes[self].count = end - begin;
+      leaf(nodes[self], begin, end);
       return self;
     }
-    int axis;
-    cbox.sizes().maxCoeff(&axis);
-    const std::uint32_t mid = split(begin, end, axis, cbox);
-    build(begin, mid);
-    nodes[self].first = build(mid, end);
-    nodes[self].count = 0;
+    const std::uint32_t mid = split(begin, end, centreBox(begin, end));
+    const std::uint32_t left = build(nodes, begin, mid);
+    const std::uint32_t right = build(nodes, mid, end);
+    join(nodes[self], nodes[left], nodes[right], right);
     return self;
+  }
+
+  void leaf(TriangleBvh::Node& node, std::uint32_t begin, std::uint32_t end) const {
+    Box box;
+    double nlo[3] = {2, 2, 2}, nhi[3] = {-2, -2, -2};
+    for (std::uint32_t i = begin; i < end; ++i) {
+      box.extend(prims[order[i]].box);
+      const Vec3& n = mesh.normals[order[i]];
+      for (int k = 0; k < 3; ++k) {
+        nlo[k] = std::min(nlo[k], n[k]);
+        nhi[k] = std::max(nhi[k], n[k]);
+      }
+    }
+    for (int k = 0; k < 3; ++k) {
+      node.lo[k] = box.lo[k];
+      node.hi[k] = box.hi[k];
+      // Outward by more than float rounding: bounds stay bounds after the cast.
+      node.normalLo[k] = static_cast<float>(nlo[k] - 1e-6);
+      node.normalHi[k] = static_cast<float>(nhi[k] + 1e-6);
+    }
+    node.first = begin;
+    node.count = end - begin;
+  }
+
+  static void join(TriangleBvh::Node& node, const TriangleBvh::Node& a, const TriangleBvh::Node& b,
+                   std::uint32_t right) {
+    for (int k = 0; k < 3; ++k) {
+      node.lo[k] = std::min(a.lo[k], b.lo[k]);
+      node.hi[k] = std::max(a.hi[k], b.hi[k]);
+      node.normalLo[k] = std::min(a.normalLo[k], b.normalLo[k]);
+      node.normalHi[k] = std::max(a.normalHi[k], b.normalHi[k]);
+    }
+    node.first = right;
+    node.count = 0;
   }
 };
 
 }  // namespace
 
-TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize) : mesh_(mesh) {
+TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned threads) : mesh_(mesh) {
   const std::size_t n = mesh.size();
   if (n == 0) return;
-  Build b{mesh, {}, {}, nodes_, order_, std::max(1, leafSize)};
-  b.centroids.resize(n);
-  b.boxes.resize(n);
+  std::vector<Prim> prims(n);
   order_.resize(n);
   for (std::size_t t = 0; t < n; ++t) {
-    b.centroids[t] = mesh.centroid(t);
-    b.boxes[t].setEmpty();
-    for (int k = 0; k < 3; ++k) b.boxes[t].extend(mesh.vertex(t, k));
+    Prim& p = prims[t];
+    for (int v = 0; v < 3; ++v) {
+      const Vec3& x = mesh.vertex(t, v);
+      for (int k = 0; k < 3; ++k) {
+        p.box.lo[k] = std::min(p.box.lo[k], down(x[k]));
+        p.box.hi[k] = std::max(p.box.hi[k], up(x[k]));
+      }
+    }
+    for (int k = 0; k < 3; ++k) p.centre[k] = 0.5f * p.box.lo[k] + 0.5f * p.box.hi[k];
     order_[t] = static_cast<std::uint32_t>(t);
   }
-  nodes_.reserve(2 * n / std::max(1, leafSize) + 2);
-  b.build(0, static_cast<std::uint32_t>(n));
+  const Build b{mesh, prims, order_, std::max(1, leafSize)};
+  const std::uint32_t count = static_cast<std::uint32_t>(n);
+  // At most 2n - 1 nodes: reserving that never reallocates, and untouched capacity is never resident.
+  nodes_.reserve(2 * n);
+  if (threads < 2 || n < 4096) {
+    b.build(nodes_, 0, count);
+    return;
+  }
+  // The root's split here, its left subtree on this thread straight into nodes_, its right subtree on
+  // a second thread into its own array, appended with the right-child indices shifted: the same tree
+  // as the serial build.
+  nodes_.emplace_back();
+  const std::uint32_t mid = b.split(0, count, b.centreBox(0, count));
+  std::vector<Node> right;
+  right.reserve(2 * (n - mid));
+  std::thread worker([&]() { b.build(right, mid, count); });
+  b.build(nodes_, 0, mid);
+  worker.join();
+  const std::uint32_t base = static_cast<std::uint32_t>(nodes_.size());
+  for (Node& node : right)
+    if (node.count == 0) node.first += base;
+  nodes_.insert(nodes_.end(), right.begin(), right.end());
+  Build::join(nodes_[0], nodes_[1], nodes_[base], base);
 }
 
 }  // namespace clod_haptics

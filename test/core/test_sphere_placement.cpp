@@ -201,4 +201,51 @@ TEST(PaperPlacement, BuilderUsesPlacementOnce) {
             mesh->size());
 }
 
+TEST(PaperPlacement, FlatArraysEqualThePlacedSpheres) {
+  // placeCentres (what ClodBuilder keeps) writes the same spheres as place(), in the same order.
+  for (const char* name : {"elephant.off", "mesh_with_border.off"}) {
+    const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
+    PlacementStats a, b;
+    const auto placed = PaperPlacement(2).place(*mesh, &a);
+    const PlacedCentres flat = PaperPlacement(2).placeCentres(*mesh, &b);
+    ASSERT_EQ(flat.centres.size(), placed.size()) << name;
+    ASSERT_EQ(flat.wrapped.size(), placed.size()) << name;
+    for (std::size_t i = 0; i < placed.size(); ++i) {
+      ASSERT_EQ(flat.centres[i], placed[i].centre) << name << " sphere " << i;
+      ASSERT_EQ(flat.wrapped[i], placed[i].triangle) << name << " sphere " << i;
+    }
+    EXPECT_EQ(a.paired, b.paired);
+    EXPECT_EQ(a.unpaired, b.unpaired);
+    EXPECT_EQ(a.degenerate, b.degenerate);
+    EXPECT_EQ(a.relaxations, b.relaxations);
+  }
+}
+
+// A placement that only implements place(): the base class converts it to flat arrays.
+class OneSpherePerTriangle : public SpherePlacement {
+ public:
+  std::vector<PlacedSphere> place(const TriangleMesh& mesh, PlacementStats* stats) const override {
+    std::vector<PlacedSphere> out;
+    for (std::size_t t = 0; t < mesh.size(); ++t)
+      out.push_back({mesh.centroid(t), farthest(mesh, std::uint32_t(t), mesh.centroid(t)), std::uint32_t(t)});
+    if (stats) stats->triangles = mesh.size();
+    return out;
+  }
+};
+
+TEST(SpherePlacement, DefaultFlatArraysConvertPlace) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
+  PlacementStats stats;
+  const PlacedCentres flat = OneSpherePerTriangle().placeCentres(*mesh, &stats);
+  EXPECT_EQ(stats.triangles, mesh->size());
+  ASSERT_EQ(flat.centres.size(), mesh->size());
+  for (std::size_t t = 0; t < mesh->size(); ++t) {
+    EXPECT_EQ(flat.centres[t], mesh->centroid(t));
+    EXPECT_EQ(flat.wrapped[t], t);
+  }
+  // A builder over it keeps exactly those centres.
+  const ClodBuilder builder(mesh, std::make_shared<OneSpherePerTriangle>());
+  EXPECT_EQ(builder.centres(), mesh->size());
+}
+
 }  // namespace

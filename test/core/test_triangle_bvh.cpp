@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <limits>
 #include <map>
 #include <random>
@@ -15,8 +16,8 @@ namespace {
 
 using namespace clod_haptics;
 
-void checkRays(const TriangleMesh& mesh, int rays, std::uint64_t seed) {
-  const TriangleBvh bvh(mesh);
+void checkRays(const TriangleMesh& mesh, int rays, std::uint64_t seed, unsigned threads = 1) {
+  const TriangleBvh bvh(mesh, 4, threads);
   ASSERT_FALSE(bvh.nodes().empty());
   std::vector<std::uint32_t> order = bvh.order();
   std::sort(order.begin(), order.end());
@@ -53,6 +54,43 @@ TEST(TriangleBvh, EveryHitOfEveryRay) {
   checkRays(*clod_test::loadNormalized(clod_test::sharedMesh("head.off")), 3000, 1);
   checkRays(*clod_test::loadNormalized(clod_test::sharedMesh("mesh_with_border.off")), 2000, 2);
   checkRays(loadMesh(clod_test::testData("cube.obj")), 500, 3);
+}
+
+TEST(TriangleBvh, TwoThreadBuildIsTheSameTree) {
+  // Above 4096 triangles the root's subtrees are built on two threads: the same nodes, byte for byte,
+  // and the same leaf order as the serial build, and every ray still finds every hit.
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("elephant.off"));
+  ASSERT_GT(mesh->size(), 4096u);
+  const TriangleBvh serial(*mesh, 4, 1), parallel(*mesh, 4, 2);
+  ASSERT_EQ(serial.order(), parallel.order());
+  ASSERT_EQ(serial.nodes().size(), parallel.nodes().size());
+  EXPECT_EQ(std::memcmp(serial.nodes().data(), parallel.nodes().data(),
+                        serial.nodes().size() * sizeof(TriangleBvh::Node)),
+            0);
+  checkRays(*mesh, 1500, 4, 2);
+}
+
+TEST(TriangleBvh, OtherLeafSizes) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
+  for (int leaf : {1, 2, 8}) {
+    const TriangleBvh bvh(*mesh, leaf);
+    std::size_t rays = 0;
+    for (std::size_t t = 0; t < mesh->size(); t += 7) {
+      const Vec3 origin = mesh->centroid(t), dir = -mesh->normals[t];
+      if (dir.isZero(0.0)) continue;
+      std::map<std::uint32_t, double> expected, got;
+      for (std::size_t o = 0; o < mesh->size(); ++o) {
+        double d;
+        if (rayTriangle(origin, dir, mesh->vertex(o, 0), mesh->vertex(o, 1), mesh->vertex(o, 2), d))
+          expected[std::uint32_t(o)] = d;
+      }
+      double tMax = std::numeric_limits<double>::infinity();
+      bvh.forEachRayHit(origin, dir, tMax, [&](std::uint32_t o, double d) { got[o] = d; });
+      ASSERT_EQ(got, expected) << "leaf size " << leaf << ", triangle " << t;
+      ++rays;
+    }
+    EXPECT_GT(rays, 300u);
+  }
 }
 
 TEST(TriangleBvh, ShrinkingTMaxPrunesFartherHits) {

@@ -37,10 +37,25 @@ inline Vec3 closestPointOnSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
 bool projectInsideTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& n, Vec3& q);
 
 /**
- * \brief Ray against triangle (Moller-Trumbore, both faces).
+ * \brief Ray against triangle (Moller-Trumbore, both faces). Inline: the placement's ray casts call it
+ * for every triangle of every leaf they reach.
  * \return true with the ray parameter in t when the ray hits the closed triangle at t > 0.
  */
-bool rayTriangle(const Vec3& origin, const Vec3& dir, const Vec3& a, const Vec3& b, const Vec3& c, double& t);
+inline bool rayTriangle(const Vec3& origin, const Vec3& dir, const Vec3& a, const Vec3& b, const Vec3& c, double& t) {
+  const Vec3 e1 = b - a, e2 = c - a;
+  const Vec3 pv = dir.cross(e2);
+  const double det = e1.dot(pv);
+  if (det == 0.0 || !std::isfinite(det)) return false;
+  const double inv = 1.0 / det;
+  const Vec3 tv = origin - a;
+  const double u = tv.dot(pv) * inv;
+  if (u < 0.0 || u > 1.0) return false;
+  const Vec3 qv = tv.cross(e1);
+  const double v = dir.dot(qv) * inv;
+  if (v < 0.0 || u + v > 1.0) return false;
+  t = e2.dot(qv) * inv;
+  return t > 0.0;
+}
 
 /** \brief Squared distance from p to the box (zero inside). */
 inline double squaredDistanceToBox(const Vec3& p, const Vec3& lo, const Vec3& hi) {

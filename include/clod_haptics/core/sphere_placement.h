@@ -27,6 +27,15 @@ struct PlacementStats {
 };
 
 /**
+ * \brief Placed spheres as flat arrays, what ClodBuilder keeps: centre i wraps triangle wrapped[i]
+ * (its radius, the distance to that triangle's farthest vertex, is not stored).
+ */
+struct PlacedCentres {
+  std::vector<Vec3> centres;
+  std::vector<std::uint32_t> wrapped;
+};
+
+/**
  * \brief Strategy that turns a mesh into unclustered spheres (paper section 3.2.1 or another rule).
  * Every triangle must end up inside at least one returned sphere that names it.
  */
@@ -35,6 +44,11 @@ class SpherePlacement {
   virtual ~SpherePlacement() = default;
   /** \brief Places the spheres; stats may be null. */
   virtual std::vector<PlacedSphere> place(const TriangleMesh& mesh, PlacementStats* stats) const = 0;
+  /**
+   * \brief The same spheres, in the same order, as flat arrays. The default converts place(); a
+   * placement may fill the arrays directly and save the array of structs (ClodBuilder calls this).
+   */
+  virtual PlacedCentres placeCentres(const TriangleMesh& mesh, PlacementStats* stats) const;
 };
 
 /**
@@ -59,8 +73,13 @@ class PaperPlacement : public SpherePlacement {
   explicit PaperPlacement(unsigned threads = 0, std::function<void(double)> progress = {})
       : threads_(threads), progress_(std::move(progress)) {}
   std::vector<PlacedSphere> place(const TriangleMesh& mesh, PlacementStats* stats) const override;
+  /** \brief The same spheres as place(), written straight into exactly sized flat arrays. */
+  PlacedCentres placeCentres(const TriangleMesh& mesh, PlacementStats* stats) const override;
 
  private:
+  struct Opposites;
+  Opposites castRays(const TriangleMesh& mesh) const;
+
   unsigned threads_;
   std::function<void(double)> progress_;
 };

@@ -14,22 +14,27 @@ namespace clod_haptics {
  * \brief A bounding-volume hierarchy over a mesh's triangles in flat arrays, for the ray casts of
  * sphere placement (every hit along a ray, not only the first).
  *
- * Nodes are stored depth first; a leaf holds a contiguous run of the permuted triangle order.
+ * Nodes are stored depth first (the left child follows its parent); a leaf holds a contiguous run of
+ * the permuted triangle order. Bounds are floats rounded outward, so a node's box contains its
+ * triangles exactly while a node takes 56 bytes instead of 80; the ray-box test runs in double.
  */
 class TriangleBvh {
  public:
   /** \brief One node: bounds, and either the second child (inner) or a triangle run (leaf). */
   struct Node {
-    double lo[3];
-    double hi[3];
+    float lo[3];          ///< box of the triangles below, rounded outward
+    float hi[3];
     float normalLo[3];    ///< component-wise bounds of the unit face normals below (rounded outward)
     float normalHi[3];
     std::uint32_t first;  ///< leaf: first entry in order(); inner: index of the right child
     std::uint32_t count;  ///< leaf: number of triangles; inner: 0
   };
 
-  /** \brief Builds the hierarchy; the mesh must outlive it. */
-  explicit TriangleBvh(const TriangleMesh& mesh, int leafSize = 4);
+  /**
+   * \brief Builds the hierarchy (binned surface area heuristic); the mesh must outlive it. threads > 1
+   * builds the root's two subtrees concurrently (same tree as one thread).
+   */
+  explicit TriangleBvh(const TriangleMesh& mesh, int leafSize = 4, unsigned threads = 1);
 
   /**
    * \brief Calls hit(triangle, t) for every triangle the ray origin + t dir meets at 0 < t < tMax.
@@ -79,11 +84,13 @@ void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMa
     negative[k] = inv[k] < 0.0;
   }
   // Entry distance of the ray into a node's box, or 1e308 when it misses within (0, tMax).
+  const double o[3] = {origin[0], origin[1], origin[2]};
   auto enter = [&](const Node& node) {
     double t0 = 0.0, t1 = tMax;
     for (int k = 0; k < 3; ++k) {
-      const double near = ((negative[k] ? node.hi[k] : node.lo[k]) - origin[k]) * inv[k];
-      const double far = ((negative[k] ? node.lo[k] : node.hi[k]) - origin[k]) * inv[k];
+      const double lo = node.lo[k], hi = node.hi[k];
+      const double near = ((negative[k] ? hi : lo) - o[k]) * inv[k];
+      const double far = ((negative[k] ? lo : hi) - o[k]) * inv[k];
       t0 = near > t0 ? near : t0;
       t1 = far < t1 ? far : t1;
     }
