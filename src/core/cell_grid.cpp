@@ -35,12 +35,61 @@ struct Candidate {
   std::uint64_t key;
   float distance;
   std::uint32_t triangle;
-  float direction[3];
+  std::int8_t direction[3];
 };
+
+std::int8_t quantise(double u) { return static_cast<std::int8_t>(std::lround(std::clamp(u, -1.0, 1.0) * 127.0)); }
+
+// Rounding of a stored direction: each component within 0.5 / 127 of u, so |u - stored| <= sqrt(3) / 254
+// and the bound errs by at most that times |p - centre| <= h sqrt(3) / 2.
+constexpr double kDirectionError = 1.7320508075688772 / 254.0;
+constexpr double kHalfDiagonal = 0.8660254037844386;
+
+// Range of n . x over the part of triangle (a, b, c) (relative to a cell's centre) inside the region
+// |x|_inf <= half, |x|_1 <= diamond (Sutherland-Hodgman against those 6 + 8 planes); false when nothing
+// of the triangle is inside.
+bool clippedRange(const Vec3& a, const Vec3& b, const Vec3& c, double half, double diamond, const Vec3& n, double& lo,
+                  double& hi) {
+  Vec3 poly[2][24];
+  int count = 3;
+  poly[0][0] = a;
+  poly[0][1] = b;
+  poly[0][2] = c;
+  int cur = 0;
+  auto clip = [&](const Vec3& normal, double limit) {
+    const Vec3* in = poly[cur];
+    Vec3* out = poly[1 - cur];
+    int m = 0;
+    for (int i = 0; i < count; ++i) {
+      const Vec3& P = in[i];
+      const Vec3& Q = in[(i + 1) % count];
+      const double dp = normal.dot(P) - limit, dq = normal.dot(Q) - limit;
+      if (dp <= 0.0) out[m++] = P;
+      if ((dp < 0.0 && dq > 0.0) || (dp > 0.0 && dq < 0.0)) out[m++] = P + (dp / (dp - dq)) * (Q - P);
+    }
+    count = m;
+    cur = 1 - cur;
+    return count > 0;
+  };
+  for (int k = 0; k < 3; ++k)
+    for (double side : {1.0, -1.0})
+      if (!clip(side * Vec3::Unit(k), half)) return false;
+  for (int q = 0; q < 8; ++q)
+    if (!clip(Vec3(q & 1 ? -1.0 : 1.0, q & 2 ? -1.0 : 1.0, q & 4 ? -1.0 : 1.0), diamond)) return false;
+  lo = std::numeric_limits<double>::infinity();
+  hi = -lo;
+  for (int i = 0; i < count; ++i) {
+    const double v = n.dot(poly[cur][i]);
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+  }
+  return true;
+}
 
 }  // namespace
 
-CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle) {
+CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle,
+                   Index index) {
   const double maxEntries = std::max(1e6, entriesPerTriangle * static_cast<double>(mesh.size()));
   if (!(radius > 0.0) || !std::isfinite(radius))
     throw InvalidParameter("cell grid radius must be finite and > 0, got " + std::to_string(radius));
@@ -73,8 +122,11 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
   }
   cell_ = h;
   inv_ = 1.0 / h;
-  // Float rounding of u (relative 2^-24 per component) times |p - centre| <= h: bounded by 1e-6 h.
-  slack_ = 1e-6 * h + pad;
+  // The 8-bit direction times |p - centre| <= h sqrt(3) / 2, plus float rounding (< 1e-6 h).
+  slack_ = (kDirectionError * kHalfDiagonal + 1e-6) * h + pad;
+  unit_ = h / 8192.0;
+  // Rounding of the slab test's products and of the clipped points: relative 1e-9 of the cell, plus pad.
+  slabPad_ = 1e-9 * h + 4.0 * pad;
   const double reach = radius + 0.8660254037844386 * h + pad;
   origin_ = bounds.min() - Vec3::Constant(reach + h);
   for (int k = 0; k < 3; ++k)
@@ -114,11 +166,10 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
               // entry keeps the trivial bound 0 <= distance (dc = 0, u = 0): never skipped, never wrong.
               if (d > tiny) {
                 const Vec3 dir = toCentre / d;
-                candidates.push_back(
-                    {key, roundDown(d), static_cast<std::uint32_t>(t),
-                     {static_cast<float>(dir.x()), static_cast<float>(dir.y()), static_cast<float>(dir.z())}});
+                candidates.push_back({key, roundDown(d), static_cast<std::uint32_t>(t),
+                                      {quantise(dir.x()), quantise(dir.y()), quantise(dir.z())}});
               } else {
-                candidates.push_back({key, 0.0f, static_cast<std::uint32_t>(t), {0.0f, 0.0f, 0.0f}});
+                candidates.push_back({key, 0.0f, static_cast<std::uint32_t>(t), {0, 0, 0}});
               }
             }
           }
@@ -129,51 +180,197 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
     if (p.distance != q.distance) return p.distance < q.distance;
     return p.triangle < q.triangle;
   };
-  std::vector<Candidate> candidates;
+  // Two threads each collect and sort their half; the halves are merged straight into the entries.
+  std::vector<Candidate> first, second;
   {
     const std::size_t half = mesh.size() / 2;
-    std::vector<Candidate> second;
     std::thread helper([&] {
       collect(half, mesh.size(), second);
       std::sort(second.begin(), second.end(), order);
     });
-    collect(0, half, candidates);
-    std::sort(candidates.begin(), candidates.end(), order);
+    collect(0, half, first);
+    std::sort(first.begin(), first.end(), order);
     helper.join();
-    const std::size_t middle = candidates.size();
-    candidates.insert(candidates.end(), second.begin(), second.end());
-    std::inplace_merge(candidates.begin(), candidates.begin() + static_cast<std::ptrdiff_t>(middle), candidates.end(),
-                       order);
   }
+  // Visits the candidates of both halves in merged order.
+  auto merged = [&](auto&& visit) {
+    std::size_t i = 0, j = 0;
+    while (i < first.size() || j < second.size()) {
+      if (j == second.size() || (i < first.size() && order(first[i], second[j])))
+        visit(first[i++]);
+      else
+        visit(second[j++]);
+    }
+  };
+  std::size_t cells = 0;
+  {
+    std::uint64_t last = kOutside;
+    merged([&](const Candidate& c) {
+      cells += c.key != last;
+      last = c.key;
+    });
+  }
+  cellCount_ = cells;
 
   // The first sphere listing each triangle (every triangle is listed: the coverage invariant).
   const std::vector<std::uint32_t> sphereOf = firstSphereOfTriangles(set, mesh.size());
 
-  std::size_t cells = 0;
-  for (std::size_t i = 0; i < candidates.size(); ++i) cells += (i == 0 || candidates[i].key != candidates[i - 1].key);
-  std::size_t cap = 16;
-  while (cap < 2 * cells) cap <<= 1;
-  slots_.assign(cap, Cell{kOutside, 0, 0, 0});
-  mask_ = cap - 1;
-  cellCount_ = cells;
-  entries_.resize(candidates.size());
-  std::vector<std::uint32_t> seen;
-  for (std::size_t i = 0; i < candidates.size();) {
-    std::size_t j = i;
-    seen.clear();
-    while (j < candidates.size() && candidates[j].key == candidates[i].key) {
-      const Candidate& c = candidates[j];
-      entries_[j] = {c.triangle, c.distance, {c.direction[0], c.direction[1], c.direction[2]}};
-      seen.push_back(sphereOf[candidates[j].triangle]);
-      ++j;
-    }
-    std::sort(seen.begin(), seen.end());
-    const auto spheres = static_cast<std::uint32_t>(std::unique(seen.begin(), seen.end()) - seen.begin());
-    std::uint64_t slot = mix(candidates[i].key) & mask_;
-    while (slots_[slot].key != kOutside) slot = (slot + 1) & mask_;
-    slots_[slot] = {candidates[i].key, static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j - i), spheres};
-    i = j;
+  // Entries: per cell a header, then its candidates; headers' positions in key order.
+  entries_.resize(first.size() + second.size() + cells);
+  std::vector<std::uint64_t> headers;
+  std::vector<std::uint64_t> keys;
+  headers.reserve(cells);
+  keys.reserve(cells);
+  {
+    std::size_t at = 0, header = 0;
+    std::uint64_t last = kOutside;
+    std::vector<std::uint32_t> seen;
+    auto close = [&]() {
+      if (last == kOutside) return;
+      std::sort(seen.begin(), seen.end());
+      const auto spheres = static_cast<std::uint32_t>(std::unique(seen.begin(), seen.end()) - seen.begin());
+      Entry& h = entries_[header];
+      h = Entry{static_cast<std::uint32_t>(at - header - 1), 0.0f, {0, 0, 0}, 0};
+      std::memcpy(&h.centreDistance, &spheres, sizeof spheres);
+    };
+    merged([&](const Candidate& c) {
+      if (c.key != last) {
+        close();
+        seen.clear();
+        header = at++;
+        headers.push_back(header);
+        keys.push_back(c.key);
+        last = c.key;
+      }
+      entries_[at++] = Entry{c.triangle, c.distance, {c.direction[0], c.direction[1], c.direction[2]}, 0};
+      seen.push_back(sphereOf[c.triangle]);
+    });
+    close();
   }
+  std::vector<Candidate>().swap(first);
+  std::vector<Candidate>().swap(second);
+
+  // Per cell, the index entry: sub-cell mask and slab.
+  // Sub-cell masks: bit s set when a candidate is within radius + s sqrt(3) / 2 of sub-cell s's centre
+  // (side s = h / 4), the same exact test as for the cells; the cell's candidates hold every such
+  // triangle, since a sub-cell centre is within 3 sqrt(3) h / 8 of the cell centre.
+  // Slab: a triangle point within radius R of a point of the cell is within h / 2 + R of the centre
+  // along each axis and within 3 h / 2 + sqrt(3) R in the L1 norm (the cell grown by a ball of radius
+  // R lies in that box and that octahedron): the candidates clipped to both span the slab.
+  std::vector<CellRef> refs(cells);
+  {
+    const double sub = 0.25 * h;
+    const double subReach = radius + kHalfDiagonal * sub + pad;
+    double offsets[64][3];
+    double norms[64];
+    for (int q = 0; q < 64; ++q) {
+      offsets[q][0] = ((q & 3) - 1.5) * sub;
+      offsets[q][1] = (((q >> 2) & 3) - 1.5) * sub;
+      offsets[q][2] = ((q >> 4) - 1.5) * sub;
+      norms[q] = std::sqrt(offsets[q][0] * offsets[q][0] + offsets[q][1] * offsets[q][1] + offsets[q][2] * offsets[q][2]);
+    }
+    const double half = (0.5 * h + radius) * (1.0 + 1e-9) + pad;
+    const double diamond = (1.5 * h + 1.7320508075688772 * radius) * (1.0 + 1e-9) + 2.0 * pad;
+    auto fill = [&](std::size_t begin, std::size_t end) {
+      for (std::size_t k = begin; k < end; ++k) {
+        const Vec3 centre = centreOf(keys[k]);
+        CellRef ref{};
+        ref.header = static_cast<std::uint32_t>(headers[k]);
+        const Cell c = cell(ref);
+        std::uint64_t mask = 0;
+        for (int q = 0; q < 64; ++q) {
+          const Vec3 at = centre + Vec3(offsets[q][0], offsets[q][1], offsets[q][2]);
+          const double slackQ = (kDirectionError + 1e-6) * norms[q] + pad;
+          for (std::uint32_t i = 0; i < c.count; ++i) {
+            const Entry& e = c.entries[i];
+            const double dc = e.centreDistance;
+            if (dc - norms[q] - pad > subReach) break;
+            const double bound =
+                dc + offsets[q][0] * e.dir(0) + offsets[q][1] * e.dir(1) + offsets[q][2] * e.dir(2) - slackQ;
+            if (bound > subReach) continue;
+            const std::size_t t = e.triangle;
+            const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &cc = mesh.vertex(t, 2);
+            if ((at - closestPointOnTriangle(at, a, b, cc)).norm() <= subReach) {
+              mask |= 1ull << q;
+              break;
+            }
+          }
+        }
+        ref.maskLow = static_cast<std::uint32_t>(mask);
+        ref.maskHigh = static_cast<std::uint32_t>(mask >> 32);
+        // The slab along the first candidate's normal, exactly as the query will use it (the 8-bit m).
+        ref.offset = 0;
+        ref.halfWidth = 0xffff;
+        const Vec3& n = mesh.normals[c.entries[0].triangle];
+        if (!n.isZero(0.0)) {
+          const std::int8_t m8[3] = {quantise(n.x()), quantise(n.y()), quantise(n.z())};
+          const Vec3 m(m8[0] / 127.0, m8[1] / 127.0, m8[2] / 127.0);
+          double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+          for (std::uint32_t i = 0; i < c.count; ++i) {
+            const std::size_t t = c.entries[i].triangle;
+            double l, u;
+            if (clippedRange(mesh.vertex(t, 0) - centre, mesh.vertex(t, 1) - centre, mesh.vertex(t, 2) - centre, half,
+                             diamond, m, l, u)) {
+              lo = std::min(lo, l);
+              hi = std::max(hi, u);
+            }
+          }
+          if (lo <= hi) {
+            const double mid = std::round(0.5 * (lo + hi) / unit_);
+            const double width = std::ceil(std::max(hi - mid * unit_, mid * unit_ - lo) / unit_) + 1.0;
+            if (std::abs(mid) <= 32767.0 && width <= 65535.0) {
+              for (int j = 0; j < 3; ++j) ref.normal[j] = m8[j];
+              ref.offset = static_cast<std::int16_t>(mid);
+              ref.halfWidth = static_cast<std::uint16_t>(width);
+            }
+          }
+        }
+        refs[k] = ref;
+      }
+    };
+    std::thread helper([&] { fill(cells / 2, cells); });
+    fill(0, cells / 2);
+    helper.join();
+  }
+
+  // Dense index when its bits are small (or forced), else a hash table.
+  const double total = static_cast<double>(dims_[0]) * static_cast<double>(dims_[1]) * static_cast<double>(dims_[2]);
+  const double denseBytes = total / 64.0 * sizeof(Word) + 4.0 * static_cast<double>(cells);
+  const double budget = std::max(4.0 * 1024 * 1024, 16.0 * static_cast<double>(mesh.size()));
+  const bool fits = entries_.size() < (1ull << 32) && total < 17179869184.0;  // 2^34 cells
+  const bool dense = fits && (index == Index::Dense || (index == Index::Auto && denseBytes <= budget));
+  const std::uint64_t m = (1ull << kBits) - 1;
+  if (dense) {
+    const auto nx = static_cast<std::uint64_t>(dims_[0]), ny = static_cast<std::uint64_t>(dims_[1]);
+    words_.assign(static_cast<std::size_t>((static_cast<std::uint64_t>(total) + 63) / 64), Word{0, 0, 0});
+    // Keys sort by z, then y, then x: the same order as the linear index, so ranks follow key order.
+    for (std::size_t k = 0; k < keys.size(); ++k) {
+      const std::uint64_t key = keys[k];
+      const std::uint64_t linear = (key & m) + nx * (((key >> kBits) & m) + ny * ((key >> (2 * kBits)) & m));
+      words_[linear >> 6].bits |= 1ull << (linear & 63);
+    }
+    std::uint32_t rank = 0;
+    for (Word& w : words_) {
+      w.rank = rank;
+      rank += static_cast<std::uint32_t>(__builtin_popcountll(w.bits));
+    }
+    refs_ = std::move(refs);
+  } else {
+    std::size_t cap = 16;
+    while (cap < 2 * cells) cap <<= 1;
+    slots_.assign(cap, Slot{kOutside, CellRef{}});
+    mask_ = cap - 1;
+    for (std::size_t k = 0; k < keys.size(); ++k) {
+      std::uint64_t slot = mix(keys[k]) & mask_;
+      while (slots_[slot].key != kOutside) slot = (slot + 1) & mask_;
+      slots_[slot] = {keys[k], refs[k]};
+    }
+  }
+}
+
+std::size_t CellGrid::bytes() const {
+  return entries_.capacity() * sizeof(Entry) + words_.capacity() * sizeof(Word) +
+         refs_.capacity() * sizeof(CellRef) + slots_.capacity() * sizeof(Slot);
 }
 
 std::uint64_t CellGrid::keyOf(const Vec3& p) const noexcept {
@@ -186,15 +383,41 @@ std::uint64_t CellGrid::keyOf(const Vec3& p) const noexcept {
   return key;
 }
 
-const CellGrid::Cell* CellGrid::find(std::uint64_t key) const noexcept {
-  if (key == kOutside || slots_.empty()) return nullptr;
+const CellGrid::CellRef* CellGrid::find(std::uint64_t key) const noexcept {
+  if (key == kOutside || entries_.empty()) return nullptr;
+  if (!words_.empty()) {
+    const std::uint64_t m = (1ull << kBits) - 1;
+    const std::uint64_t linear =
+        (key & m) + static_cast<std::uint64_t>(dims_[0]) *
+                        (((key >> kBits) & m) + static_cast<std::uint64_t>(dims_[1]) * ((key >> (2 * kBits)) & m));
+    const Word& w = words_[linear >> 6];
+    const std::uint64_t bit = 1ull << (linear & 63);
+    if (!(w.bits & bit)) return nullptr;
+    return refs_.data() + w.rank + static_cast<std::uint32_t>(__builtin_popcountll(w.bits & (bit - 1)));
+  }
   std::uint64_t slot = mix(key) & mask_;
   for (;;) {
-    const Cell& c = slots_[slot];
-    if (c.key == key) return &c;
+    const Slot& c = slots_[slot];
+    if (c.key == key) return &c.ref;
     if (c.key == kOutside) return nullptr;
     slot = (slot + 1) & mask_;
   }
+}
+
+std::uint64_t CellGrid::keyOf(const Vec3& p, unsigned& sub) const noexcept {
+  // 4 (p - origin) / h is exact scaling of (p - origin) / h, so floor(q / 4) is keyOf's cell.
+  std::uint64_t key = 0;
+  unsigned s = 0;
+  const double inv4 = 4.0 * inv_;
+  for (int k = 0; k < 3; ++k) {
+    const double q = std::floor((p[k] - origin_[k]) * inv4);
+    if (!(q >= 0.0) || q >= 4.0 * static_cast<double>(dims_[k])) return kOutside;
+    const auto i = static_cast<std::uint64_t>(q);
+    key |= (i >> 2) << (k * kBits);
+    s |= static_cast<unsigned>(i & 3) << (2 * k);
+  }
+  sub = s;
+  return key;
 }
 
 Vec3 CellGrid::centreOf(std::uint64_t key) const noexcept {

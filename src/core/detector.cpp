@@ -69,6 +69,8 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   }
 
   sphereOfTriangle_ = firstSphereOfTriangles(s, m.size());
+  triangleIndex_ = m.triangles.data();
+  vertices_ = m.vertices.data();
 
   if (fastLevel_ == FastLevel::Grid) {
     const double radius = gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * bounds.diagonal().norm();
@@ -173,41 +175,68 @@ void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMod
   }
 }
 
+// The grid's precise test reads the triangle from the mesh's own arrays (indices, vertices: compact,
+// so they stay in cache) rather than from the per-triangle records the other fast levels use.
+inline void ClodDetector::testGridTriangle(std::uint32_t tri, const Vec3& p, DetectionMode mode, Best& best) const {
+  ++best.tested;
+  const Triangle& t = triangleIndex_[tri];
+  const Vec3* v = vertices_;
+  Vec3 q;
+  if (mode == DetectionMode::Exact) {
+    q = closestPointOnTriangle(p, v[t[0]], v[t[1]], v[t[2]]);
+  } else if (!projectInsideTriangle(p, v[t[0]], v[t[1]], v[t[2]], mesh_->normals[tri], q)) {
+    return;
+  }
+  const double d2 = (p - q).squaredNorm();
+  if (d2 < best.d2 || (d2 == best.d2 && (!best.found || tri < best.triangle))) {
+    best.d2 = d2;
+    best.reach = std::sqrt(d2);
+    best.found = true;
+    best.triangle = tri;
+    best.sphere = kNone;
+    best.point = q;
+  }
+}
+
 void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const {
-  const std::uint64_t key = grid_.keyOf(p);
-  const CellGrid::Cell* cell;
+  unsigned sub = 0;
+  const std::uint64_t key = grid_.keyOf(p, sub);
+  const CellGrid::CellRef* ref;
   if (cache != nullptr && cache->owner == this && cache->key == key) {
-    cell = static_cast<const CellGrid::Cell*>(cache->cell);
+    ref = static_cast<const CellGrid::CellRef*>(cache->cell);
     ++cache->hits;
   } else {
-    cell = grid_.find(key);
+    ref = grid_.find(key);
   }
   if (cache != nullptr) {
     if (cache->owner != this) cache->lastTriangle = -1;
     cache->owner = this;
     cache->key = key;
-    cache->cell = cell;
+    cache->cell = ref;
   }
-  if (cell == nullptr) return;  // no triangle within the grid radius of this cell: no precise work
-  best.hits = cell->spheres;
-  // Start from the last contact: a close triangle found first lets the sorted scan stop early.
-  if (cache != nullptr && cache->lastTriangle >= 0 && static_cast<std::size_t>(cache->lastTriangle) < mesh_->size()) {
-    const auto last = static_cast<std::uint32_t>(cache->lastTriangle);
-    testTriangle(last, kNone, p, mode, best);
-  }
+  if (ref == nullptr) return;  // no triangle within the grid radius of this cell: no precise work
   const Vec3 centre = grid_.centreOf(key);
   const Vec3 rel = p - centre;
+  // Near but not on the surface: proven from the index entry, the candidates stay unread.
+  if (grid_.noContact(*ref, sub, rel, best.reach)) return;
+  const CellGrid::Cell cell = grid_.cell(*ref);
+  best.hits = cell.spheres;
+  // Start from the last contact: a close triangle found first lets the sorted scan stop early.
+  if (cache != nullptr && cache->lastTriangle >= 0 && static_cast<std::size_t>(cache->lastTriangle) < mesh_->size())
+    testGridTriangle(static_cast<std::uint32_t>(cache->lastTriangle), p, mode, best);
   const double offset = rel.norm() + pad_;
   const double slack = grid_.slack();
-  const CellGrid::Entry* e = grid_.entries(*cell);
-  for (std::uint32_t i = 0; i < cell->count; ++i) {
+  // The stored directions are scaled by 127; scaling rel instead saves a multiplication per entry.
+  const double rx = rel.x() * (1.0 / 127.0), ry = rel.y() * (1.0 / 127.0), rz = rel.z() * (1.0 / 127.0);
+  const CellGrid::Entry* e = cell.entries;
+  for (std::uint32_t i = 0; i < cell.count; ++i) {
     const double dc = e[i].centreDistance;
     // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
     if (dc - offset > best.reach) break;
     // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.
-    const double bound = dc + rel.x() * e[i].direction[0] + rel.y() * e[i].direction[1] + rel.z() * e[i].direction[2];
+    const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
     if (bound - slack > best.reach) continue;
-    testTriangle(e[i].triangle, kNone, p, mode, best);  // the sphere is looked up once, for the answer
+    testGridTriangle(e[i].triangle, p, mode, best);  // the sphere is looked up once, for the answer
   }
 }
 
@@ -320,8 +349,11 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
 std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcept {
   if (!validPointer(p, r)) return 0;
   if (!grid_.empty() && r <= grid_.radius()) {
-    const CellGrid::Cell* cell = grid_.find(grid_.keyOf(p));
-    return cell ? cell->spheres : 0;
+    unsigned sub = 0;
+    const std::uint64_t key = grid_.keyOf(p, sub);
+    const CellGrid::CellRef* ref = grid_.find(key);
+    if (ref == nullptr || grid_.noContact(*ref, sub, p - grid_.centreOf(key), r)) return 0;
+    return grid_.cell(*ref).spheres;
   }
   std::uint32_t hits = 0;
   const double reach = r;

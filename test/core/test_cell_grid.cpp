@@ -36,8 +36,8 @@ std::size_t checkGrid(const TriangleMesh& mesh, const CellGrid& grid, const std:
   for (const Vec3& p : probes) {
     if (failures > 5) break;
     const std::uint64_t key = grid.keyOf(p);
-    const CellGrid::Cell* cell = grid.find(key);
-    if (cell == nullptr) {
+    const CellGrid::CellRef* ref = grid.find(key);
+    if (ref == nullptr) {
       // No cell: no triangle within the grid radius of p.
       if (bruteForceQuery(mesh, p, grid.radius() * (1 - 1e-9)).contact) {
         ++failures;
@@ -51,9 +51,25 @@ std::size_t checkGrid(const TriangleMesh& mesh, const CellGrid& grid, const std:
       ++failures;
       ADD_FAILURE() << "probe " << p.transpose() << " is not in the cell whose centre is " << centre.transpose();
     }
-    const CellGrid::Entry* e = grid.entries(*cell);
+    // The index entry's proof of no contact (sub-cell mask, slab) never hides a triangle.
+    unsigned sub = 99;
+    EXPECT_EQ(grid.keyOf(p, sub), key);
+    EXPECT_LT(sub, 64u);
+    const Vec3 subCentre = centre + (Vec3(double(sub & 3), double((sub >> 2) & 3), double(sub >> 4)) - Vec3::Constant(1.5)) * (h / 4);
+    if ((p - subCentre).cwiseAbs().maxCoeff() > 0.125 * h * (1 + 1e-9)) {
+      ++failures;
+      ADD_FAILURE() << "probe " << p.transpose() << " is not in its sub-cell " << sub;
+    }
+    for (double r : {grid.radius(), 0.5 * grid.radius()})
+      if (grid.noContact(*ref, sub, rel, r) && bruteForceQuery(mesh, p, r).contact) {
+        ++failures;
+        ADD_FAILURE() << "the index entry proves no contact for " << p.transpose() << " (r " << r << ", sub-cell " << sub
+                      << ", mask bit " << ((ref->mask() >> sub) & 1) << ") but a triangle is within r";
+      }
+    const CellGrid::Cell cell = grid.cell(*ref);
+    const CellGrid::Entry* e = cell.entries;
     std::vector<char> listed(mesh.size(), 0);
-    for (std::uint32_t i = 0; i < cell->count; ++i) {
+    for (std::uint32_t i = 0; i < cell.count; ++i) {
       const std::size_t t = e[i].triangle;
       if (t >= mesh.size()) {
         ADD_FAILURE() << "triangle index " << t << " out of range";
@@ -67,14 +83,14 @@ std::size_t checkGrid(const TriangleMesh& mesh, const CellGrid& grid, const std:
       EXPECT_LE(double(e[i].centreDistance), dc) << "centre distance rounded down, triangle " << t;
       EXPECT_GE(double(e[i].centreDistance), dc - 1e-6 * h - 1e-12) << "triangle " << t;
       // The bound used to skip a triangle for this p.
-      const double bound = double(e[i].centreDistance) + rel.x() * e[i].direction[0] + rel.y() * e[i].direction[1] +
-                           rel.z() * e[i].direction[2] - grid.slack();
+      const double bound = double(e[i].centreDistance) + rel.x() * e[i].dir(0) + rel.y() * e[i].dir(1) +
+                           rel.z() * e[i].dir(2) - grid.slack();
       const double truth = distanceToTriangle(mesh, t, p);
       if (bound > truth) {
         ++failures;
         ADD_FAILURE() << "bound " << bound << " exceeds the distance " << truth << " from " << p.transpose()
-                      << " to triangle " << t << " (centre distance " << dc << ", direction " << e[i].direction[0]
-                      << " " << e[i].direction[1] << " " << e[i].direction[2] << ")";
+                      << " to triangle " << t << " (centre distance " << dc << ", direction " << e[i].dir(0)
+                      << " " << e[i].dir(1) << " " << e[i].dir(2) << ")";
       }
     }
     if (!checked.insert(key).second) continue;
@@ -128,6 +144,44 @@ TEST(CellGrid, ContractOnPlanesThroughCellCentres) {
     checkGrid(*diag, CellGrid(*diag, diagSet, radius), probesNear(*diag, 2 * radius, 7), "x=y r=" + std::to_string(radius));
 }
 
+// The dense bit index and the hash table find the same cells with the same candidates and proofs.
+TEST(CellGrid, DenseAndHashedIndexAgree) {
+  for (const char* name : {"head.off", "mesh_with_border.off", "degtri_sliding.off"}) {
+    SCOPED_TRACE(name);
+    const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
+    const ClodSphereSet set = ClodBuilder(mesh).build(0.02);
+    const CellGrid dense(*mesh, set, 0.005, 24.0, CellGrid::Index::Dense);
+    const CellGrid hashed(*mesh, set, 0.005, 24.0, CellGrid::Index::Hashed);
+    EXPECT_TRUE(dense.dense());
+    EXPECT_FALSE(hashed.dense());
+    ASSERT_EQ(dense.cells(), hashed.cells());
+    ASSERT_EQ(dense.entries(), hashed.entries());
+    std::size_t found = 0;
+    for (const Vec3& p : probesNear(*mesh, 0.015, 11)) {
+      const std::uint64_t key = dense.keyOf(p);
+      ASSERT_EQ(key, hashed.keyOf(p));
+      const CellGrid::CellRef* a = dense.find(key);
+      const CellGrid::CellRef* b = hashed.find(key);
+      ASSERT_EQ(a == nullptr, b == nullptr) << p.transpose();
+      if (a == nullptr) continue;
+      ++found;
+      EXPECT_EQ(a->mask(), b->mask());
+      EXPECT_EQ(a->offset, b->offset);
+      EXPECT_EQ(a->halfWidth, b->halfWidth);
+      const CellGrid::Cell ca = dense.cell(*a), cb = hashed.cell(*b);
+      ASSERT_EQ(ca.count, cb.count);
+      EXPECT_EQ(ca.spheres, cb.spheres);
+      for (std::uint32_t i = 0; i < ca.count; ++i) {
+        EXPECT_EQ(ca.entries[i].triangle, cb.entries[i].triangle);
+        EXPECT_EQ(ca.entries[i].centreDistance, cb.entries[i].centreDistance);
+      }
+    }
+    EXPECT_GT(found, 1000u);
+    // And the hashed grid keeps the contract too.
+    checkGrid(*mesh, hashed, probesNear(*mesh, 0.01, 13), std::string(name) + " hashed");
+  }
+}
+
 TEST(CellGrid, BadRadiusThrows) {
   const auto mesh = clod_test::loadNormalized(clod_test::testData("cube.obj"));
   const ClodSphereSet set = ClodBuilder(mesh).build(0.0);
@@ -141,6 +195,8 @@ TEST(CellGrid, OutsideKeyForFarPoints) {
   EXPECT_EQ(grid.keyOf(Vec3(100, 0.5, 0.5)), CellGrid::kOutside);
   EXPECT_EQ(grid.keyOf(Vec3(0.5, -100, 0.5)), CellGrid::kOutside);
   EXPECT_EQ(grid.find(CellGrid::kOutside), nullptr);
+  unsigned sub = 0;
+  EXPECT_EQ(grid.keyOf(Vec3(100, 0.5, 0.5), sub), CellGrid::kOutside);
   EXPECT_NE(grid.find(grid.keyOf(Vec3(0.5, 0.5, 1.0))), nullptr) << "a point on the surface has candidates";
 }
 

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include "clod_haptics/core/mesh.h"
@@ -9,79 +10,147 @@
 namespace clod_haptics {
 
 /**
- * \brief The fast level precomputed per cell of a hashed uniform grid: for every pointer of radius
- * up to radius() inside a cell, the triangles (and the spheres listing them) that the two-level
- * detection could report. A query is one hash lookup and a few exact triangle tests, O(1) in the
- * mesh size; an empty cell means no contact and no precise work at all.
+ * \brief The fast level precomputed per cell of a uniform grid: for every pointer of radius up to
+ * radius() inside a cell, the triangles (and the spheres listing them) that the two-level detection
+ * could report. A query is one index lookup and a few exact triangle tests, O(1) in the mesh size; an
+ * empty cell means no contact and no precise work at all.
  *
  * A cell of side h keeps every triangle whose distance to the cell's centre is at most
  * radius + h sqrt(3) / 2 (an exact test, so no candidate is missed), sorted by that distance, so a
  * query stops at the first candidate whose lower bound (distance to the centre minus the pointer's
  * offset from the centre) exceeds the best distance so far. Immutable after construction.
+ *
+ * Layout, for a query bound by memory latency: one array of 12-byte entries where each non-empty cell
+ * is a header (its candidate and sphere counts) followed by its candidates, so a query touches one
+ * run of consecutive cache lines. Cells are found through a dense index (one bit per cell of the box
+ * plus a rank per 64 cells, then the run's start: small enough to stay in cache, and an empty cell is
+ * answered from the bit alone) when the box has few enough cells, otherwise through a hash table.
+ *
+ * Beside its index entry each cell keeps two cheap proofs of "no contact", so most pointers near but
+ * not on the surface are answered without reading the cell's candidates: a 64-bit mask over 4 x 4 x 4
+ * sub-cells (a clear bit: no triangle within radius() of any point of that sub-cell) and a slab
+ * |m . (p - centre) - offset| <= halfWidth holding every candidate's part within reach of the cell
+ * (m: the first candidate's normal, 8 bits per component), so a pointer farther than r from the slab
+ * touches nothing.
  */
 class CellGrid {
  public:
-  /** \brief One candidate of a cell. */
+  /** \brief One candidate of a cell (12 bytes). */
   struct Entry {
     std::uint32_t triangle;
     float centreDistance;  ///< distance dc from the cell centre to the triangle, rounded down
     /**
-     * Unit direction u from the triangle's closest point q to the cell centre (zero when the centre
-     * is on the triangle). The triangle lies in the half-space (x - q) . u <= 0, so for a pointer at p
-     * distance(p, T) >= dc + (p - centre) . u, a bound three multiplications cheap.
+     * Unit direction u from the triangle's closest point q to the cell centre, times 127, rounded to
+     * nearest (zero when the centre is on the triangle). The triangle lies in the half-space
+     * (x - q) . u <= 0, so for a pointer at p distance(p, T) >= dc + (p - centre) . u; the rounding of
+     * u (at most sqrt(3) / 254) is covered by slack().
      */
-    float direction[3];
+    std::int8_t direction[3];
+    std::uint8_t unused;
+    /** \brief Component k of the direction as stored (divided by 127). */
+    float dir(int k) const { return static_cast<float>(direction[k]) * (1.0f / 127.0f); }
   };
-  /** \brief A cell: its run of entries and the number of distinct spheres they come from. */
+  /** \brief A non-empty cell: its candidates and the number of distinct spheres they come from. */
   struct Cell {
-    std::uint64_t key;
-    std::uint32_t first;
+    const Entry* entries;
     std::uint32_t count;
     std::uint32_t spheres;
   };
+  /** \brief How cells are found. */
+  enum class Index : std::uint8_t { Auto, Dense, Hashed };
 
   CellGrid() = default;
   /**
    * \brief Builds the grid for pointers of radius up to radius (> 0). Cell side is 2 radius, grown
    * when the grid would exceed 2^21 cells per axis or its memory budget: entriesPerTriangle
-   * candidates per triangle on average (20 bytes each), so memory stays linear in the mesh.
+   * candidates per triangle on average (12 bytes each), so memory stays linear in the mesh.
+   * \param index Auto: dense when its bit index takes at most max(4 MiB, 16 bytes per triangle),
+   * hashed otherwise; Dense or Hashed force one (Dense falls back to Hashed beyond 2^34 cells).
    */
-  CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle = 24.0);
+  CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle = 24.0,
+           Index index = Index::Auto);
 
   /** \brief The largest pointer radius the grid answers for; larger pointers need another descent. */
   double radius() const { return radius_; }
-  /** \brief Slack to subtract from an Entry's bound for float rounding (relative to the cell). */
+  /** \brief Slack to subtract from an Entry's bound for the rounding of its float and 8-bit fields. */
   double slack() const { return slack_; }
   /** \brief Side of a cell. */
   double cellSize() const { return cell_; }
   /** \brief Whether the grid was built. */
-  bool empty() const { return slots_.empty(); }
+  bool empty() const { return entries_.empty(); }
+  /** \brief Whether cells are found through the dense bit index (else the hash table). */
+  bool dense() const { return !words_.empty(); }
   /** \brief Number of stored cells and candidates (for statistics). */
   std::size_t cells() const { return cellCount_; }
-  std::size_t entries() const { return entries_.size(); }
+  std::size_t entries() const { return entries_.size() - cellCount_; }
+  /** \brief Bytes held by the grid's arrays. */
+  std::size_t bytes() const;
+
+  /** \brief What the index keeps per non-empty cell (20 bytes). */
+  struct CellRef {
+    std::uint32_t header;     ///< index of the cell's header in the entries
+    std::uint32_t maskLow;    ///< sub-cell mask, bits 0..31 (sub-cell x + 4 y + 16 z)
+    std::uint32_t maskHigh;   ///< bits 32..63
+    std::int8_t normal[3];    ///< slab direction m times 127 (zero: no slab)
+    std::uint8_t unused;
+    std::int16_t offset;      ///< slab centre along m, in units of cellSize() / 8192
+    std::uint16_t halfWidth;  ///< slab half width, same units, rounded up (covers offset's rounding)
+    std::uint64_t mask() const { return static_cast<std::uint64_t>(maskHigh) << 32 | maskLow; }
+  };
 
   /** \brief Cell key of p, or kOutside when p is outside the grid (then no triangle is within radius()). */
   std::uint64_t keyOf(const Vec3& p) const noexcept;
-  /** \brief The cell of a key, or null when no triangle is near it. */
-  const Cell* find(std::uint64_t key) const noexcept;
+  /** \brief Cell key of p and p's sub-cell in it (0..63: x + 4 y + 16 z). */
+  std::uint64_t keyOf(const Vec3& p, unsigned& sub) const noexcept;
+  /** \brief The index entry of the cell of a key, or null when no triangle is near it. */
+  const CellRef* find(std::uint64_t key) const noexcept;
+  /** \brief The candidates of a cell. */
+  Cell cell(const CellRef& ref) const noexcept {
+    const Entry* header = entries_.data() + ref.header;
+    std::uint32_t spheres;
+    std::memcpy(&spheres, &header->centreDistance, sizeof spheres);
+    return Cell{header + 1, header->triangle, spheres};
+  }
+  /**
+   * \brief Whether the pointer (p = centre + rel, radius r <= radius()) in sub-cell sub of the cell
+   * certainly touches no triangle: its sub-cell bit is clear or it is farther than r from the slab.
+   */
+  bool noContact(const CellRef& ref, unsigned sub, const Vec3& rel, double r) const noexcept {
+    if (!((ref.mask() >> sub) & 1u)) return true;
+    // |m| <= 1 + kDirection: |m . (p - q)| > |m| r proves |p - q| > r for every slab point q.
+    const double along = (rel.x() * ref.normal[0] + rel.y() * ref.normal[1] + rel.z() * ref.normal[2]) * (1.0 / 127.0);
+    return std::abs(along - unit_ * ref.offset) - unit_ * ref.halfWidth - slabPad_ > r * kSlabRadius;
+  }
   /** \brief Centre of the cell of a key. */
   Vec3 centreOf(std::uint64_t key) const noexcept;
-  /** \brief First entry of a cell. */
-  const Entry* entries(const Cell& c) const noexcept { return entries_.data() + c.first; }
 
   static constexpr std::uint64_t kOutside = ~0ull;
 
  private:
+  struct Word {
+    std::uint64_t bits;  // one bit per cell, in linear order x + nx (y + ny z)
+    std::uint32_t rank;  // non-empty cells before this word
+    std::uint32_t unused;
+  };
+  struct Slot {
+    std::uint64_t key;  // kOutside marks a free slot
+    CellRef ref;
+  };
+  static constexpr double kSlabRadius = 1.0 + 1.7320508075688772 / 254.0;  // bound of |m|
   double radius_ = 0.0;
   double cell_ = 0.0;
   double inv_ = 0.0;
   double slack_ = 0.0;
+  double unit_ = 0.0;     // slab units: cell / 8192
+  double slabPad_ = 0.0;  // rounding of the slab test
   Vec3 origin_ = Vec3::Zero();
   std::int64_t dims_[3] = {0, 0, 0};
-  std::vector<Cell> slots_;  // open addressing, key kOutside marks a free slot
-  std::uint64_t mask_ = 0;
   std::size_t cellCount_ = 0;
-  std::vector<Entry> entries_;
+  std::vector<Entry> entries_;       // per cell: a header (triangle = count, centreDistance = spheres' bits), then candidates
+  std::vector<Word> words_;          // dense index
+  std::vector<CellRef> refs_;        // dense index: the k-th non-empty cell
+  std::vector<Slot> slots_;          // hashed index: open addressing
+  std::uint64_t mask_ = 0;
 };
 
 }  // namespace clod_haptics

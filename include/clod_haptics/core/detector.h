@@ -27,7 +27,7 @@ enum class FastLevel : std::uint8_t {
 struct QueryCache {
   const void* owner = nullptr;        ///< the detector that filled it; another detector ignores it
   std::uint64_t key = ~0ull;          ///< last grid cell
-  const void* cell = nullptr;         ///< that cell's record (null: empty cell)
+  const void* cell = nullptr;         ///< that cell's index entry in the grid (null: empty cell)
   std::int32_t lastTriangle = -1;     ///< last contact triangle
   std::uint64_t hits = 0;             ///< queries that reused the cell (statistics)
 };
@@ -62,7 +62,8 @@ class ClodDetector {
 
   /**
    * \brief The fast level alone, as the configured descent runs it for the precise modes: how many
-   * spheres it reports for the pointer (grid: the spheres cached for p's cell; hierarchy: spheres
+   * spheres it reports for the pointer (grid: the spheres cached for p's cell, none when the cell's
+   * index entry proves no contact; hierarchy: spheres
    * whose bound meets the pointer; flat: every sphere the pointer overlaps). For timing the two
    * levels apart; allocates nothing.
    */
@@ -85,6 +86,7 @@ class ClodDetector {
   void preciseFlat(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
   void preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
   void testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
+  void testGridTriangle(std::uint32_t tri, const Vec3& p, DetectionMode mode, Best& best) const;
   void preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const;
 
   std::shared_ptr<const TriangleMesh> mesh_;
@@ -110,6 +112,8 @@ class ClodDetector {
   // Grid: the fast level per cell, and the first sphere listing each triangle.
   CellGrid grid_;
   std::vector<std::uint32_t> sphereOfTriangle_;
+  const Triangle* triangleIndex_ = nullptr;  // the mesh's arrays (kept alive by mesh_)
+  const Vec3* vertices_ = nullptr;
 };
 
 }  // namespace clod_haptics
