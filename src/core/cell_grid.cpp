@@ -250,54 +250,20 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
   std::vector<Candidate>().swap(first);
   std::vector<Candidate>().swap(second);
 
-  // Per cell, the index entry: sub-cell mask and slab.
-  // Sub-cell masks: bit s set when a candidate is within radius + s sqrt(3) / 2 of sub-cell s's centre
-  // (side s = h / 4), the same exact test as for the cells; the cell's candidates hold every such
-  // triangle, since a sub-cell centre is within 3 sqrt(3) h / 8 of the cell centre.
-  // Slab: a triangle point within radius R of a point of the cell is within h / 2 + R of the centre
-  // along each axis and within 3 h / 2 + sqrt(3) R in the L1 norm (the cell grown by a ball of radius
-  // R lies in that box and that octahedron): the candidates clipped to both span the slab.
+  // Per cell, the index entry: the slab. A triangle point within radius R of a point of the cell is
+  // within h / 2 + R of the centre along each axis and within 3 h / 2 + sqrt(3) R in the L1 norm (the
+  // cell grown by a ball of radius R lies in that box and that octahedron): the candidates clipped to
+  // both span the slab.
   std::vector<CellRef> refs(cells);
   {
-    const double sub = 0.25 * h;
-    const double subReach = radius + kHalfDiagonal * sub + pad;
-    double offsets[64][3];
-    double norms[64];
-    for (int q = 0; q < 64; ++q) {
-      offsets[q][0] = ((q & 3) - 1.5) * sub;
-      offsets[q][1] = (((q >> 2) & 3) - 1.5) * sub;
-      offsets[q][2] = ((q >> 4) - 1.5) * sub;
-      norms[q] = std::sqrt(offsets[q][0] * offsets[q][0] + offsets[q][1] * offsets[q][1] + offsets[q][2] * offsets[q][2]);
-    }
     const double half = (0.5 * h + radius) * (1.0 + 1e-9) + pad;
     const double diamond = (1.5 * h + 1.7320508075688772 * radius) * (1.0 + 1e-9) + 2.0 * pad;
     auto fill = [&](std::size_t begin, std::size_t end) {
       for (std::size_t k = begin; k < end; ++k) {
         const Vec3 centre = centreOf(keys[k]);
         CellRef ref{};
-        ref.header = static_cast<std::uint32_t>(headers[k]);
-        const Cell c = cell(ref);
-        std::uint64_t mask = 0;
-        for (int q = 0; q < 64; ++q) {
-          const Vec3 at = centre + Vec3(offsets[q][0], offsets[q][1], offsets[q][2]);
-          const double slackQ = (kDirectionError + 1e-6) * norms[q] + pad;
-          for (std::uint32_t i = 0; i < c.count; ++i) {
-            const Entry& e = c.entries[i];
-            const double dc = e.centreDistance;
-            if (dc - norms[q] - pad > subReach) break;
-            const double bound =
-                dc + offsets[q][0] * e.dir(0) + offsets[q][1] * e.dir(1) + offsets[q][2] * e.dir(2) - slackQ;
-            if (bound > subReach) continue;
-            const std::size_t t = e.triangle;
-            const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &cc = mesh.vertex(t, 2);
-            if ((at - closestPointOnTriangle(at, a, b, cc)).norm() <= subReach) {
-              mask |= 1ull << q;
-              break;
-            }
-          }
-        }
-        ref.maskLow = static_cast<std::uint32_t>(mask);
-        ref.maskHigh = static_cast<std::uint32_t>(mask >> 32);
+        const Entry* head = entries_.data() + headers[k];
+        const Cell c{head + 1, head->triangle, 0};
         // The slab along the first candidate's normal, exactly as the query will use it (the 8-bit m).
         ref.offset = 0;
         ref.halfWidth = 0xffff;
@@ -335,7 +301,7 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
 
   // Dense index when its bits are small (or forced), else a hash table.
   const double total = static_cast<double>(dims_[0]) * static_cast<double>(dims_[1]) * static_cast<double>(dims_[2]);
-  const double denseBytes = total / 64.0 * sizeof(Word) + 4.0 * static_cast<double>(cells);
+  const double denseBytes = total / 64.0 * sizeof(Word) + 12.0 * static_cast<double>(cells);
   const double budget = std::max(4.0 * 1024 * 1024, 16.0 * static_cast<double>(mesh.size()));
   const bool fits = entries_.size() < (1ull << 32) && total < 17179869184.0;  // 2^34 cells
   const bool dense = fits && (index == Index::Dense || (index == Index::Auto && denseBytes <= budget));
@@ -355,22 +321,25 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
       rank += static_cast<std::uint32_t>(__builtin_popcountll(w.bits));
     }
     refs_ = std::move(refs);
+    headers_.resize(headers.size());
+    for (std::size_t k = 0; k < headers.size(); ++k) headers_[k] = static_cast<std::uint32_t>(headers[k]);
   } else {
     std::size_t cap = 16;
     while (cap < 2 * cells) cap <<= 1;
-    slots_.assign(cap, Slot{kOutside, CellRef{}});
+    slots_.assign(cap, Slot{kOutside, 0, CellRef{}});
     mask_ = cap - 1;
     for (std::size_t k = 0; k < keys.size(); ++k) {
       std::uint64_t slot = mix(keys[k]) & mask_;
       while (slots_[slot].key != kOutside) slot = (slot + 1) & mask_;
-      slots_[slot] = {keys[k], refs[k]};
+      slots_[slot] = {keys[k], headers[k], refs[k]};
     }
   }
 }
 
 std::size_t CellGrid::bytes() const {
   return entries_.capacity() * sizeof(Entry) + words_.capacity() * sizeof(Word) +
-         refs_.capacity() * sizeof(CellRef) + slots_.capacity() * sizeof(Slot);
+         refs_.capacity() * sizeof(CellRef) + headers_.capacity() * sizeof(std::uint32_t) +
+         slots_.capacity() * sizeof(Slot);
 }
 
 std::uint64_t CellGrid::keyOf(const Vec3& p) const noexcept {
@@ -402,22 +371,6 @@ const CellGrid::CellRef* CellGrid::find(std::uint64_t key) const noexcept {
     if (c.key == kOutside) return nullptr;
     slot = (slot + 1) & mask_;
   }
-}
-
-std::uint64_t CellGrid::keyOf(const Vec3& p, unsigned& sub) const noexcept {
-  // 4 (p - origin) / h is exact scaling of (p - origin) / h, so floor(q / 4) is keyOf's cell.
-  std::uint64_t key = 0;
-  unsigned s = 0;
-  const double inv4 = 4.0 * inv_;
-  for (int k = 0; k < 3; ++k) {
-    const double q = std::floor((p[k] - origin_[k]) * inv4);
-    if (!(q >= 0.0) || q >= 4.0 * static_cast<double>(dims_[k])) return kOutside;
-    const auto i = static_cast<std::uint64_t>(q);
-    key |= (i >> 2) << (k * kBits);
-    s |= static_cast<unsigned>(i & 3) << (2 * k);
-  }
-  sub = s;
-  return key;
 }
 
 Vec3 CellGrid::centreOf(std::uint64_t key) const noexcept {

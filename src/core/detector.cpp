@@ -50,8 +50,10 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());
   pad_ = 1e-12 * std::max(magnitude, bounds.diagonal().norm());
 
-  triangles_.resize(kRecord * m.size());
-  for (std::size_t t = 0; t < m.size(); ++t) {
+  // Per-triangle records for the hierarchy and the flat list; the grid reads the mesh's own arrays
+  // (104 bytes per triangle saved), also in its hierarchy fallback.
+  if (fastLevel_ != FastLevel::Grid) triangles_.resize(kRecord * m.size());
+  for (std::size_t t = 0; t < triangles_.size() / kRecord; ++t) {
     double* record = triangles_.data() + kRecord * t;
     const Vec3 c = m.centroid(t);
     double r2 = 0.0;
@@ -71,6 +73,7 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   sphereOfTriangle_ = firstSphereOfTriangles(s, m.size());
   triangleIndex_ = m.triangles.data();
   vertices_ = m.vertices.data();
+  normals_ = m.normals.data();
 
   if (fastLevel_ == FastLevel::Grid) {
     const double radius = gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * bounds.diagonal().norm();
@@ -118,12 +121,22 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
 inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode,
                                        Best& best) const {
   ++best.tested;
-  // A ball around the triangle rejects it cheaply when it cannot beat the current best.
-  const double* ball = triangles_.data() + kRecord * tri;
-  const double bx = p.x() - ball[0], by = p.y() - ball[1], bz = p.z() - ball[2], reach = ball[3] + best.reach;
-  if (bx * bx + by * by + bz * bz > reach * reach) return;
-  const double* c = ball + 4;
-  const Vec3 a(c[0], c[1], c[2]), b(c[3], c[4], c[5]), cc(c[6], c[7], c[8]);
+  Vec3 a, b, cc;
+  if (!triangles_.empty()) {
+    // A ball around the triangle rejects it cheaply when it cannot beat the current best.
+    const double* ball = triangles_.data() + kRecord * tri;
+    const double bx = p.x() - ball[0], by = p.y() - ball[1], bz = p.z() - ball[2], reach = ball[3] + best.reach;
+    if (bx * bx + by * by + bz * bz > reach * reach) return;
+    const double* c = ball + 4;
+    a = Vec3(c[0], c[1], c[2]);
+    b = Vec3(c[3], c[4], c[5]);
+    cc = Vec3(c[6], c[7], c[8]);
+  } else {  // the grid level keeps no records (its hierarchy fallback is for pointers beyond its radius)
+    const Triangle& t = triangleIndex_[tri];
+    a = vertices_[t[0]];
+    b = vertices_[t[1]];
+    cc = vertices_[t[2]];
+  }
   Vec3 q;
   if (mode == DetectionMode::Exact) {
     q = closestPointOnTriangle(p, a, b, cc);
@@ -195,12 +208,14 @@ inline void ClodDetector::testGridTriangle(std::uint32_t tri, const Vec3& p, Det
     best.triangle = tri;
     best.sphere = kNone;
     best.point = q;
+    // The answer reads them last: start their loads while the scan goes on.
+    __builtin_prefetch(normals_ + tri);
+    __builtin_prefetch(sphereOfTriangle_.data() + tri);
   }
 }
 
 void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const {
-  unsigned sub = 0;
-  const std::uint64_t key = grid_.keyOf(p, sub);
+  const std::uint64_t key = grid_.keyOf(p);
   const CellGrid::CellRef* ref;
   if (cache != nullptr && cache->owner == this && cache->key == key) {
     ref = static_cast<const CellGrid::CellRef*>(cache->cell);
@@ -218,7 +233,7 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   const Vec3 centre = grid_.centreOf(key);
   const Vec3 rel = p - centre;
   // Near but not on the surface: proven from the index entry, the candidates stay unread.
-  if (grid_.noContact(*ref, sub, rel, best.reach)) return;
+  if (grid_.noContact(*ref, rel, best.reach)) return;
   const CellGrid::Cell cell = grid_.cell(*ref);
   best.hits = cell.spheres;
   // Start from the last contact: a close triangle found first lets the sorted scan stop early.
@@ -349,10 +364,9 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
 std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcept {
   if (!validPointer(p, r)) return 0;
   if (!grid_.empty() && r <= grid_.radius()) {
-    unsigned sub = 0;
-    const std::uint64_t key = grid_.keyOf(p, sub);
+    const std::uint64_t key = grid_.keyOf(p);
     const CellGrid::CellRef* ref = grid_.find(key);
-    if (ref == nullptr || grid_.noContact(*ref, sub, p - grid_.centreOf(key), r)) return 0;
+    if (ref == nullptr || grid_.noContact(*ref, p - grid_.centreOf(key), r)) return 0;
     return grid_.cell(*ref).spheres;
   }
   std::uint32_t hits = 0;

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <vector>
@@ -26,12 +27,12 @@ namespace clod_haptics {
  * plus a rank per 64 cells, then the run's start: small enough to stay in cache, and an empty cell is
  * answered from the bit alone) when the box has few enough cells, otherwise through a hash table.
  *
- * Beside its index entry each cell keeps two cheap proofs of "no contact", so most pointers near but
- * not on the surface are answered without reading the cell's candidates: a 64-bit mask over 4 x 4 x 4
- * sub-cells (a clear bit: no triangle within radius() of any point of that sub-cell) and a slab
+ * Beside its index entry each cell keeps a cheap proof of "no contact", so most pointers near but not
+ * on the surface are answered without reading the cell's candidates: a slab
  * |m . (p - centre) - offset| <= halfWidth holding every candidate's part within reach of the cell
- * (m: the first candidate's normal, 8 bits per component), so a pointer farther than r from the slab
- * touches nothing.
+ * (m: the first candidate's normal, 8 bits per component); a pointer farther than r from the slab
+ * touches nothing. (A 4 x 4 x 4 sub-cell mask beside it proved 4% more probes but doubled this
+ * always-read array and measured no faster.)
  */
 class CellGrid {
  public:
@@ -86,37 +87,33 @@ class CellGrid {
   /** \brief Bytes held by the grid's arrays. */
   std::size_t bytes() const;
 
-  /** \brief What the index keeps per non-empty cell (20 bytes). */
+  /** \brief What the index keeps per non-empty cell for the proof of no contact (8 bytes). */
   struct CellRef {
-    std::uint32_t header;     ///< index of the cell's header in the entries
-    std::uint32_t maskLow;    ///< sub-cell mask, bits 0..31 (sub-cell x + 4 y + 16 z)
-    std::uint32_t maskHigh;   ///< bits 32..63
     std::int8_t normal[3];    ///< slab direction m times 127 (zero: no slab)
     std::uint8_t unused;
     std::int16_t offset;      ///< slab centre along m, in units of cellSize() / 8192
     std::uint16_t halfWidth;  ///< slab half width, same units, rounded up (covers offset's rounding)
-    std::uint64_t mask() const { return static_cast<std::uint64_t>(maskHigh) << 32 | maskLow; }
   };
 
   /** \brief Cell key of p, or kOutside when p is outside the grid (then no triangle is within radius()). */
   std::uint64_t keyOf(const Vec3& p) const noexcept;
-  /** \brief Cell key of p and p's sub-cell in it (0..63: x + 4 y + 16 z). */
-  std::uint64_t keyOf(const Vec3& p, unsigned& sub) const noexcept;
   /** \brief The index entry of the cell of a key, or null when no triangle is near it. */
   const CellRef* find(std::uint64_t key) const noexcept;
   /** \brief The candidates of a cell. */
   Cell cell(const CellRef& ref) const noexcept {
-    const Entry* header = entries_.data() + ref.header;
+    const Entry* header =
+        entries_.data() + (words_.empty() ? reinterpret_cast<const Slot*>(reinterpret_cast<const char*>(&ref) -
+                                                                          offsetof(Slot, ref))->header
+                                          : headers_[static_cast<std::size_t>(&ref - refs_.data())]);
     std::uint32_t spheres;
     std::memcpy(&spheres, &header->centreDistance, sizeof spheres);
     return Cell{header + 1, header->triangle, spheres};
   }
   /**
-   * \brief Whether the pointer (p = centre + rel, radius r <= radius()) in sub-cell sub of the cell
-   * certainly touches no triangle: its sub-cell bit is clear or it is farther than r from the slab.
+   * \brief Whether the pointer (p = centre + rel, radius r <= radius()) in the cell certainly touches
+   * no triangle: it is farther than r from the cell's slab.
    */
-  bool noContact(const CellRef& ref, unsigned sub, const Vec3& rel, double r) const noexcept {
-    if (!((ref.mask() >> sub) & 1u)) return true;
+  bool noContact(const CellRef& ref, const Vec3& rel, double r) const noexcept {
     // |m| <= 1 + kDirection: |m . (p - q)| > |m| r proves |p - q| > r for every slab point q.
     const double along = (rel.x() * ref.normal[0] + rel.y() * ref.normal[1] + rel.z() * ref.normal[2]) * (1.0 / 127.0);
     return std::abs(along - unit_ * ref.offset) - unit_ * ref.halfWidth - slabPad_ > r * kSlabRadius;
@@ -134,6 +131,7 @@ class CellGrid {
   };
   struct Slot {
     std::uint64_t key;  // kOutside marks a free slot
+    std::uint64_t header;
     CellRef ref;
   };
   static constexpr double kSlabRadius = 1.0 + 1.7320508075688772 / 254.0;  // bound of |m|
@@ -148,7 +146,8 @@ class CellGrid {
   std::size_t cellCount_ = 0;
   std::vector<Entry> entries_;       // per cell: a header (triangle = count, centreDistance = spheres' bits), then candidates
   std::vector<Word> words_;          // dense index
-  std::vector<CellRef> refs_;        // dense index: the k-th non-empty cell
+  std::vector<CellRef> refs_;         // dense index: proofs of the k-th non-empty cell (read by every query)
+  std::vector<std::uint32_t> headers_;  // dense index: its header in the entries (read on contact only)
   std::vector<Slot> slots_;          // hashed index: open addressing
   std::uint64_t mask_ = 0;
 };

@@ -97,7 +97,7 @@ class ClodDetector {
   // Flat copies for the cache: triangle corners (9 doubles each) and padded spheres (x, y, z, radius).
   std::vector<double> sphereData_;
   // Per triangle, one record of 13 doubles (two cache lines): a ball around it (centroid and padded
-  // radius reaching its vertices) for a cheap reject, then its three corners.
+  // radius reaching its vertices) for a cheap reject, then its three corners. Empty for the grid level.
   std::vector<double> triangles_;
   // Hierarchy: trees over the spheres, and one tree per sphere over its triangles. The ball tree bounds
   // each sphere's ball (spheres mode, display); the tight tree bounds each sphere by the box of the
@@ -114,6 +114,7 @@ class ClodDetector {
   std::vector<std::uint32_t> sphereOfTriangle_;
   const Triangle* triangleIndex_ = nullptr;  // the mesh's arrays (kept alive by mesh_)
   const Vec3* vertices_ = nullptr;
+  const Vec3* normals_ = nullptr;
 };
 
 }  // namespace clod_haptics
