@@ -7,6 +7,7 @@
 #include <string>
 
 #include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/tight_clustering.h"
 
 namespace clod_haptics {
 namespace {
@@ -259,6 +260,7 @@ std::uint32_t CubeClustering::cluster(const std::vector<Vec3>& points, double d,
 std::shared_ptr<const Clustering> makeClustering(const std::string& name) {
   if (name == "single-link") return std::make_shared<SingleLinkClustering>();
   if (name == "cube") return std::make_shared<CubeClustering>();
+  if (name == "tight") return std::make_shared<TightClustering>();
   return nullptr;
 }
 

@@ -48,7 +48,8 @@ ClodSphereSet ClodBuilder::build(double d) const {
   const auto start = std::chrono::steady_clock::now();
   const TriangleMesh& mesh = *mesh_;
   std::vector<std::uint32_t> labels;
-  const std::uint32_t k = clustering_->cluster(centres_, d, labels);
+  std::vector<Vec3> chosen;  // centres the strategy chose, if it did
+  const std::uint32_t k = clustering_->clusterMesh(mesh, centres_, wrapped_, d, labels, chosen);
 
   ClodSphereSet set;
   set.meshName = mesh.name;
@@ -58,13 +59,16 @@ ClodSphereSet ClodBuilder::build(double d) const {
   set.radii.assign(k, 0.0);
   set.offsets.assign(k + 1, 0);
 
-  // Mean of the member centres.
-  std::vector<std::uint32_t> members(k, 0);
-  for (std::size_t i = 0; i < centres_.size(); ++i) {
-    set.centres[labels[i]] += centres_[i];
-    ++members[labels[i]];
+  if (chosen.size() == k) {
+    set.centres = std::move(chosen);
+  } else {  // Mean of the member centres.
+    std::vector<std::uint32_t> members(k, 0);
+    for (std::size_t i = 0; i < centres_.size(); ++i) {
+      set.centres[labels[i]] += centres_[i];
+      ++members[labels[i]];
+    }
+    for (std::uint32_t c = 0; c < k; ++c) set.centres[c] /= static_cast<double>(members[c]);
   }
-  for (std::uint32_t c = 0; c < k; ++c) set.centres[c] /= static_cast<double>(members[c]);
 
   // Triangle lists, grouped by cluster (counting sort), then sorted and made unique per cluster.
   for (std::size_t i = 0; i < centres_.size(); ++i) ++set.offsets[labels[i] + 1];

@@ -21,6 +21,19 @@ class Clustering {
    * \throws InvalidParameter for a negative or non-finite d.
    */
   virtual std::uint32_t cluster(const std::vector<Vec3>& points, double d, std::vector<std::uint32_t>& labels) const = 0;
+  /**
+   * \brief The same, for a strategy that reads the mesh: wrapped[i] is the triangle point i wraps. It
+   * may also choose each cluster's sphere centre (centres[c]); left empty, the builder uses the mean of
+   * the members. The builder calls this one; the default ignores the mesh and calls cluster().
+   */
+  virtual std::uint32_t clusterMesh(const TriangleMesh& mesh, const std::vector<Vec3>& points,
+                                    const std::vector<std::uint32_t>& wrapped, double d,
+                                    std::vector<std::uint32_t>& labels, std::vector<Vec3>& centres) const {
+    (void)mesh;
+    (void)wrapped;
+    centres.clear();
+    return cluster(points, d, labels);
+  }
 };
 
 /**
@@ -46,7 +59,7 @@ class CubeClustering : public Clustering {
   std::uint32_t cluster(const std::vector<Vec3>& points, double d, std::vector<std::uint32_t>& labels) const override;
 };
 
-/** \brief A clustering strategy by name: "single-link" or "cube"; null for anything else. */
+/** \brief A clustering strategy by name: "single-link", "cube" or "tight" (TightClustering); null for anything else. */
 std::shared_ptr<const Clustering> makeClustering(const std::string& name);
 
 }  // namespace clod_haptics

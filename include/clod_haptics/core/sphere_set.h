@@ -63,8 +63,8 @@ class ClodBuilder {
 
   /**
    * \brief Clusters the placed spheres with distance d and fits one sphere per cluster: its centre is
-   * the mean of the member centres (on the central axis for a thin part) and its radius reaches every
-   * vertex of every triangle the members wrap.
+   * the mean of the member centres (on the central axis for a thin part), or the one the clustering
+   * chose (Clustering::clusterMesh), and its radius reaches every vertex of every triangle the members wrap.
    * \throws InvalidParameter for a negative or non-finite d.
    */
   ClodSphereSet build(double d) const;

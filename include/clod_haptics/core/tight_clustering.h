@@ -1,0 +1,66 @@
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "clod_haptics/core/box_tree.h"
+#include "clod_haptics/core/clustering.h"
+#include "clod_haptics/core/mesh.h"
+
+namespace clod_haptics {
+
+/**
+ * \brief Tight sphere sets ("tight" in makeClustering): the surface is split top-down into patches,
+ * each wrapped by a sphere centred deep inside the mesh, so that only a thin cap of it lies outside.
+ *
+ * Every triangle goes to exactly one cluster (the points that wrap it follow it). The clusters are the
+ * leaves of a binary tree that does not depend on d: a node's triangles are split in two at the mean of
+ * their centroids along the principal axis of those centroids. A node becomes a sphere when its
+ * excess is at most d^3: with R reaching every vertex of its triangles, rho the signed distance from
+ * its centre to the mesh (SurfaceDistance) and h = R - rho the height of its cap beyond the tangent
+ * plane at the nearest surface point, the excess h^2 (3R - h) / 4 is that cap's volume over 4/3 pi;
+ * so d is the radius of a ball holding as much volume as the cap may. A larger d gives fewer, larger
+ * spheres (the cut moves up the same tree: the count never grows with d); d = 0 gives one sphere per
+ * triangle. Nothing chains: thin parts get small spheres, thick parts few large ones.
+ *
+ * A node's centre is the candidate with the least excess among the mean of the placement's points
+ * on its triangles and the mean of the triangles' centroids pushed inward along their mean normal by
+ * 1, 3/4, 1/2, 1/4 and 1/8 of the mean depth of those points below their triangles. TightPlacement
+ * puts the points half way to the surface behind (near the medial axis), which is what this reads
+ * best; PaperPlacement works too (its points sit a quarter of the way to the opposite triangle).
+ * The builder still sets each radius to reach every vertex of every listed triangle, so coverage
+ * holds whatever the centres are.
+ *
+ * Without the mesh (the plain cluster() call) the same split runs on the points alone and a node is
+ * kept when all its points lie within d / 2 of their mean. Expected O(n log n).
+ */
+class TightClustering : public Clustering {
+ public:
+  std::uint32_t cluster(const std::vector<Vec3>& points, double d, std::vector<std::uint32_t>& labels) const override;
+  std::uint32_t clusterMesh(const TriangleMesh& mesh, const std::vector<Vec3>& points,
+                            const std::vector<std::uint32_t>& wrapped, double d, std::vector<std::uint32_t>& labels,
+                            std::vector<Vec3>& centres) const override;
+};
+
+/**
+ * \brief Signed distance from p to the mesh: the distance to the nearest point, negative when p is
+ * on the outer side of the face normal of the nearest triangle. A BoxTree over the triangles.
+ */
+class SurfaceDistance {
+ public:
+  /** \brief The mesh must outlive this. */
+  explicit SurfaceDistance(const TriangleMesh& mesh);
+  /**
+   * \brief Signed distance (positive inside); +inf for a mesh without triangles. With a finite bound,
+   * a point farther than bound from every triangle gets +bound (the search is pruned there).
+   */
+  double signedDistance(const Vec3& p, double bound = std::numeric_limits<double>::infinity()) const;
+
+ private:
+  const TriangleMesh& mesh_;
+  std::vector<BoxNode> nodes_;
+  std::vector<std::uint32_t> order_;
+};
+
+}  // namespace clod_haptics

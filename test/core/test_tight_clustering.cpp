@@ -1,0 +1,266 @@
+// TightClustering ("tight"): coverage on every shared mesh, exact detection equal to brute force on its
+// sets, a sphere count that never grows with d, one sphere per triangle, the excess bound it promises
+// (checked with a brute-force distance), the points-only fallback and SurfaceDistance.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <random>
+#include <vector>
+
+#include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/clustering.h"
+#include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/geometry.h"
+#include "clod_haptics/core/probes.h"
+#include "clod_haptics/core/sphere_set.h"
+#include "clod_haptics/core/tight_clustering.h"
+#include "clod_haptics/core/tight_placement.h"
+#include "test_helpers.h"
+
+namespace {
+
+using namespace clod_haptics;
+using clod_test::coverageProblems;
+
+std::shared_ptr<const SpherePlacement> placementNamed(const std::string& name) {
+  if (name == "tight") return std::make_shared<TightPlacement>();
+  return std::make_shared<PaperPlacement>();
+}
+
+// Brute-force signed distance: the nearest point over all triangles, negative on the outer side of
+// the nearest triangle's face normal. ambiguous is set when triangles within a hair of the nearest
+// distance disagree on the side (a centre equidistant from two faces).
+double referenceSignedDistance(const TriangleMesh& mesh, const Vec3& p, bool& ambiguous) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t t = 0; t < mesh.size(); ++t)
+    best = std::min(best, (closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2)) - p).norm());
+  int inside = 0, outside = 0;
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
+    const Vec3 q = closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2));
+    if ((q - p).norm() > best * (1.0 + 1e-9) + 1e-15) continue;
+    ((p - q).dot(mesh.normals[t]) > 0.0 ? outside : inside) += 1;
+  }
+  ambiguous = inside > 0 && outside > 0;
+  return outside > 0 && inside == 0 ? -best : best;
+}
+
+TEST(TightClustering, RegisteredByName) {
+  EXPECT_NE(std::dynamic_pointer_cast<const TightClustering>(makeClustering("tight")), nullptr);
+  EXPECT_EQ(makeClustering("Tight"), nullptr);
+}
+
+TEST(TightClustering, CoverageAndOneSpherePerTriangleOnEverySharedMesh) {
+  const auto meshes = clod_test::sharedMeshes();
+  ASSERT_GE(meshes.size(), 6u);
+  for (const auto& path : meshes) {
+    const auto mesh = clod_test::loadNormalized(path);
+    for (const std::string placement : {"paper", "tight"}) {
+      const ClodBuilder builder(mesh, placementNamed(placement), makeClustering("tight"));
+      for (double d : {0.0, 0.02, 0.04, 0.08}) {
+        SCOPED_TRACE(clod_test::baseName(path) + " placement " + placement + " d=" + std::to_string(d));
+        const ClodSphereSet set = builder.build(d);
+        const auto problems = coverageProblems(*mesh, set);
+        EXPECT_TRUE(problems.empty()) << clod_test::join(problems);
+        EXPECT_EQ(set.stats.spheres, set.size());
+        // Each triangle is listed by exactly one sphere (a partition of the surface).
+        std::vector<int> listed(mesh->size(), 0);
+        for (std::uint32_t t : set.triangles) ++listed[t];
+        for (std::size_t t = 0; t < mesh->size(); ++t) ASSERT_EQ(listed[t], 1) << "triangle " << t;
+        if (d == 0.0) {
+          EXPECT_EQ(set.size(), mesh->size()) << "d = 0: one sphere per triangle";
+        }
+        // Radii stay tight: some listed vertex lies on each sphere.
+        for (std::size_t i = 0; i < set.size(); ++i) {
+          double far = 0.0;
+          for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t)
+            for (int v = 0; v < 3; ++v) far = std::max(far, (mesh->vertex(*t, v) - set.centres[i]).norm());
+          ASSERT_NEAR(set.radii[i], far, 1e-12) << "sphere " << i;
+        }
+      }
+    }
+  }
+}
+
+TEST(TightClustering, SphereCountNonIncreasingInDistance) {
+  for (const auto& path : clod_test::sharedMeshes()) {
+    const auto mesh = clod_test::loadNormalized(path);
+    const ClodBuilder builder(mesh, std::make_shared<PaperPlacement>(), makeClustering("tight"));
+    std::size_t previous = std::numeric_limits<std::size_t>::max();
+    for (double d : {0.0, 0.005, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.08, 0.12, 0.2, 0.5, 2.0}) {
+      const std::size_t n = builder.build(d).size();
+      EXPECT_LE(n, previous) << clod_test::baseName(path) << " d=" << d;
+      previous = n;
+    }
+    // In the unit cube no sphere's cap exceeds R^3 <= 3^(3/2) < 2^3: d = 2 keeps the root.
+    EXPECT_EQ(previous, 1u) << clod_test::baseName(path);
+  }
+}
+
+TEST(TightClustering, CapOfEverySphereHoldsAtMostABallOfRadiusD) {
+  // The strategy's own promise, checked with a brute-force signed distance: for every sphere with more
+  // than one triangle, h = R - rho and h^2 (3R - h) / 4 <= d^3.
+  for (const std::string name : {"head.off", "elephant.off"}) {
+    const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
+    for (const std::string placement : {"paper", "tight"}) {
+      const ClodBuilder builder(mesh, placementNamed(placement), makeClustering("tight"));
+      for (double d : {0.02, 0.05}) {
+        SCOPED_TRACE(name + " placement " + placement + " d=" + std::to_string(d));
+        const ClodSphereSet set = builder.build(d);
+        std::size_t checked = 0;
+        for (std::size_t i = 0; i < set.size(); ++i) {
+          if (set.end(i) - set.begin(i) < 2) continue;
+          bool ambiguous = false;
+          const double rho = referenceSignedDistance(*mesh, set.centres[i], ambiguous);
+          if (ambiguous) continue;
+          const double r = set.radii[i];
+          const double h = std::clamp(r - rho, 0.0, 2.0 * r);
+          EXPECT_LE(0.25 * h * h * (3.0 * r - h), d * d * d * (1.0 + 1e-9)) << "sphere " << i;
+          ++checked;
+        }
+        EXPECT_GT(checked, 0u);
+      }
+    }
+  }
+}
+
+TEST(TightClustering, ExactDetectionEqualsBruteForce) {
+  for (const std::string name : {"head.off", "mannequin-devil.off", "mesh_with_border.off"}) {
+    const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
+    const ClodBuilder builder(mesh, std::make_shared<TightPlacement>(), makeClustering("tight"));
+    std::vector<Vec3> probes = nearSurfaceProbes(*mesh, 1500, 0.03, 21);
+    const std::vector<Vec3> uniform = uniformProbes(*mesh, 500, 0.03, 22);
+    probes.insert(probes.end(), uniform.begin(), uniform.end());
+    for (double d : {0.01, 0.04, 0.1}) {
+      const auto set = std::make_shared<const ClodSphereSet>(builder.build(d));
+      for (const FastLevel fast : {FastLevel::Grid, FastLevel::Hierarchy}) {
+        for (double r : {0.005, 0.02}) {
+          const ClodDetector detector(mesh, set, fast, r);
+          std::size_t mismatches = 0, contacts = 0;
+          clod_test::parallelFor(probes.size(), 2, [&](std::size_t b, std::size_t e) {
+            std::size_t local = 0, hits = 0;
+            ContactResult out;
+            for (std::size_t i = b; i < e; ++i) {
+              const ContactResult ref = bruteForceQuery(*mesh, probes[i], r);
+              if (std::abs(ref.distance - r) <= 1e-9 * r) continue;  // on the boundary: either answer is right
+              detector.query(probes[i], r, DetectionMode::Exact, out);
+              hits += ref.contact;
+              if (out.contact != ref.contact || (ref.contact && std::abs(out.distance - ref.distance) > 1e-9 * r)) ++local;
+            }
+            static std::mutex m;
+            std::lock_guard<std::mutex> lock(m);
+            mismatches += local;
+            contacts += hits;
+          });
+          EXPECT_EQ(mismatches, 0u) << name << " d=" << d << " r=" << r;
+          EXPECT_GT(contacts, 0u) << name;
+        }
+      }
+    }
+  }
+}
+
+TEST(TightClustering, LabelsFollowTrianglesAndAreNumberedInOrder) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("elephant.off"));
+  const auto placed = PaperPlacement().place(*mesh, nullptr);
+  std::vector<Vec3> points;
+  std::vector<std::uint32_t> wrapped;
+  for (const auto& s : placed) {
+    points.push_back(s.centre);
+    wrapped.push_back(s.triangle);
+  }
+  std::vector<std::uint32_t> labels;
+  std::vector<Vec3> centres;
+  const std::uint32_t k = TightClustering().clusterMesh(*mesh, points, wrapped, 0.03, labels, centres);
+  ASSERT_EQ(labels.size(), points.size());
+  ASSERT_EQ(centres.size(), k);
+  std::uint32_t next = 0;
+  std::vector<std::uint32_t> clusterOfTriangle(mesh->size(), std::numeric_limits<std::uint32_t>::max());
+  for (std::size_t i = 0; i < labels.size(); ++i) {
+    ASSERT_LE(labels[i], next) << "labels in the order of each cluster's first point";
+    if (labels[i] == next) ++next;
+    std::uint32_t& c = clusterOfTriangle[wrapped[i]];
+    if (c == std::numeric_limits<std::uint32_t>::max()) c = labels[i];
+    EXPECT_EQ(c, labels[i]) << "every point wrapping one triangle is in that triangle's cluster";
+  }
+  EXPECT_EQ(next, k);
+  for (const Vec3& c : centres) EXPECT_TRUE(c.allFinite());
+}
+
+TEST(TightClustering, PointsOnlyClustersStayWithinHalfD) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Vec3> points(3000);
+  for (auto& p : points) p = Vec3(u(rng), u(rng), 0.2 * u(rng));
+  const TightClustering clustering;
+  std::vector<std::uint32_t> labels;
+  EXPECT_EQ(clustering.cluster(points, 0.0, labels), points.size());
+  std::size_t previous = points.size();
+  for (double d : {0.01, 0.05, 0.1, 0.3, 3.0}) {
+    const std::uint32_t k = clustering.cluster(points, d, labels);
+    EXPECT_LE(k, previous);
+    previous = k;
+    std::vector<Vec3> sum(k, Vec3::Zero());
+    std::vector<int> count(k, 0);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      sum[labels[i]] += points[i];
+      ++count[labels[i]];
+    }
+    for (std::size_t i = 0; i < points.size(); ++i)
+      EXPECT_LE((points[i] - sum[labels[i]] / count[labels[i]]).norm(), 0.5 * d * (1.0 + 1e-12)) << "d=" << d;
+  }
+  EXPECT_EQ(previous, 1u);
+}
+
+TEST(TightClustering, BadInputThrowsInvalidParameter) {
+  const auto mesh = clod_test::loadNormalized(clod_test::testData("cube.obj"));
+  const TightClustering clustering;
+  std::vector<Vec3> points{Vec3::Zero(), Vec3::Ones()};
+  std::vector<std::uint32_t> labels;
+  std::vector<Vec3> centres;
+  for (double d : {-0.01, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    EXPECT_THROW(clustering.cluster(points, d, labels), InvalidParameter);
+    EXPECT_THROW(clustering.clusterMesh(*mesh, points, {0, 1}, d, labels, centres), InvalidParameter);
+  }
+  EXPECT_THROW(clustering.clusterMesh(*mesh, points, {0}, 0.1, labels, centres), InvalidParameter);
+  EXPECT_THROW(clustering.clusterMesh(*mesh, points, {0, 99}, 0.1, labels, centres), InvalidParameter);
+  EXPECT_EQ(clustering.clusterMesh(*mesh, {}, {}, 0.1, labels, centres), 0u);
+  const ClodBuilder builder(mesh, std::make_shared<PaperPlacement>(), makeClustering("tight"));
+  EXPECT_THROW(builder.build(-1.0), InvalidParameter);
+}
+
+TEST(SurfaceDistance, MatchesBruteForce) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
+  const SurfaceDistance surface(*mesh);
+  std::vector<Vec3> probes = uniformProbes(*mesh, 2000, 0.2, 31);
+  std::size_t checked = 0;
+  for (const Vec3& p : probes) {
+    bool ambiguous = false;
+    const double ref = referenceSignedDistance(*mesh, p, ambiguous);
+    const double got = surface.signedDistance(p);
+    EXPECT_NEAR(std::abs(got), std::abs(ref), 1e-12);
+    if (!ambiguous) {
+      EXPECT_EQ(got > 0.0, ref > 0.0) << p.transpose();
+      ++checked;
+    }
+    // Bounded: the same value when the surface is within the bound, else +bound.
+    const double bound = 0.5 * std::abs(ref);
+    EXPECT_EQ(surface.signedDistance(p, bound), bound);
+    EXPECT_NEAR(std::abs(surface.signedDistance(p, 2.0 * std::abs(ref) + 1e-9)), std::abs(ref), 1e-12);
+  }
+  EXPECT_GT(checked, probes.size() / 2);
+}
+
+TEST(SurfaceDistance, InsideAClosedCubeIsPositive) {
+  const auto mesh = clod_test::loadNormalized(clod_test::testData("cube.obj"));
+  const SurfaceDistance surface(*mesh);
+  const Vec3 centre = mesh->bounds().center();
+  const double half = 0.5 * mesh->bounds().sizes().maxCoeff();
+  EXPECT_NEAR(surface.signedDistance(centre), half, 1e-12);
+  EXPECT_NEAR(surface.signedDistance(centre + Vec3(2.0 * half, 0, 0)), -half, 1e-12);
+}
+
+}  // namespace
