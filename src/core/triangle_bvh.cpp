@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <thread>
 
@@ -12,15 +13,25 @@ namespace {
 // area(left) * count(left) + area(right) * count(right), the expected cost of a ray through the node.
 constexpr int kBins = 16;
 
-float down(double x) {
-  float f = static_cast<float>(x);
-  if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+// The next float below / above f (f not NaN), by its bit pattern: nextafterf is a library call, and
+// this runs six times per triangle.
+float below(float f) {
+  if (f == 0.0f) return -std::numeric_limits<float>::denorm_min();
+  std::uint32_t bits;
+  std::memcpy(&bits, &f, sizeof bits);
+  bits = f > 0.0f ? bits - 1 : bits + 1;
+  std::memcpy(&f, &bits, sizeof f);
   return f;
 }
+float above(float f) { return -below(-f); }
+// x rounded to float downward / upward.
+float down(double x) {
+  const float f = static_cast<float>(x);
+  return static_cast<double>(f) > x ? below(f) : f;
+}
 float up(double x) {
-  float f = static_cast<float>(x);
-  if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-  return f;
+  const float f = static_cast<float>(x);
+  return static_cast<double>(f) < x ? above(f) : f;
 }
 
 // A float box; the triangles' boxes are rounded outward, so unions of them stay conservative.
@@ -49,16 +60,18 @@ struct Box {
   }
 };
 
-// What the build keeps per triangle: its box and its box centre (the binning key), 36 bytes.
+// What the build keeps per triangle: its box, its box centre (the binning key) and its index, 40 bytes.
+// The build partitions these records themselves, so every pass over a node's range reads memory in
+// order instead of gathering through the index array.
 struct Prim {
   Box box;
   float centre[3];
+  std::uint32_t index;
 };
 
 struct Build {
   const TriangleMesh& mesh;
-  const std::vector<Prim>& prims;
-  std::vector<std::uint32_t>& order;
+  std::vector<Prim>& prims;
   int leafSize;
 
   // Partitions order[begin, end) and returns the split point; falls back to the median when the
@@ -70,20 +83,18 @@ struct Build {
     const double lo = cbox.lo[axis], extent = double(cbox.hi[axis]) - cbox.lo[axis];
     auto median = [&]() {
       const std::uint32_t mid = begin + (end - begin) / 2;
-      std::nth_element(order.begin() + begin, order.begin() + mid, order.begin() + end,
-                       [&](std::uint32_t a, std::uint32_t b) { return prims[a].centre[axis] < prims[b].centre[axis]; });
+      std::nth_element(prims.begin() + begin, prims.begin() + mid, prims.begin() + end,
+                       [&](const Prim& a, const Prim& b) { return a.centre[axis] < b.centre[axis]; });
       return mid;
     };
     if (!(extent > 0.0) || !std::isfinite(extent) || end - begin < 16) return median();
     const double scale = kBins / extent;
-    auto binOf = [&](std::uint32_t t) {
-      return std::min(kBins - 1, static_cast<int>((prims[t].centre[axis] - lo) * scale));
-    };
+    auto binOf = [&](const Prim& p) { return std::min(kBins - 1, static_cast<int>((p.centre[axis] - lo) * scale)); };
     Box bins[kBins];
     std::uint32_t counts[kBins] = {};
     for (std::uint32_t i = begin; i < end; ++i) {
-      const int b = binOf(order[i]);
-      bins[b].extend(prims[order[i]].box);
+      const int b = binOf(prims[i]);
+      bins[b].extend(prims[i].box);
       ++counts[b];
     }
     double rightArea[kBins];
@@ -111,14 +122,14 @@ struct Build {
       }
     }
     if (bestSplit < 0) return median();
-    const auto mid = std::partition(order.begin() + begin, order.begin() + end,
-                                    [&](std::uint32_t t) { return binOf(t) < bestSplit; });
-    return static_cast<std::uint32_t>(mid - order.begin());
+    const auto mid = std::partition(prims.begin() + begin, prims.begin() + end,
+                                    [&](const Prim& p) { return binOf(p) < bestSplit; });
+    return static_cast<std::uint32_t>(mid - prims.begin());
   }
 
   Box centreBox(std::uint32_t begin, std::uint32_t end) const {
     Box c;
-    for (std::uint32_t i = begin; i < end; ++i) c.extend(prims[order[i]].centre);
+    for (std::uint32_t i = begin; i < end; ++i) c.extend(prims[i].centre);
     return c;
   }
 
@@ -142,8 +153,8 @@ struct Build {
     Box box;
     double nlo[3] = {2, 2, 2}, nhi[3] = {-2, -2, -2};
     for (std::uint32_t i = begin; i < end; ++i) {
-      box.extend(prims[order[i]].box);
-      const Vec3& n = mesh.normals[order[i]];
+      box.extend(prims[i].box);
+      const Vec3& n = mesh.normals[prims[i].index];
       for (int k = 0; k < 3; ++k) {
         nlo[k] = std::min(nlo[k], n[k]);
         nhi[k] = std::max(nhi[k], n[k]);
@@ -173,48 +184,67 @@ struct Build {
   }
 };
 
+// Builds the nodes over prims (permuting them into leaf order).
+void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize, bool parallel,
+                std::vector<TriangleBvh::Node>& nodes) {
+  using Node = TriangleBvh::Node;
+  const std::size_t n = prims.size();
+  const Build b{mesh, prims, std::max(1, leafSize)};
+  const std::uint32_t count = static_cast<std::uint32_t>(n);
+  // At most 2n - 1 nodes: reserving that never reallocates, and untouched capacity is never resident.
+  nodes.reserve(2 * n);
+  if (!parallel) {
+    b.build(nodes, 0, count);
+    return;
+  }
+  // The root's split here, its left subtree on this thread straight into nodes, its right subtree on
+  // a second thread into its own array, appended with the right-child indices shifted: the same tree
+  // as the serial build.
+  nodes.emplace_back();
+  const std::uint32_t mid = b.split(0, count, b.centreBox(0, count));
+  std::vector<Node> right;
+  right.reserve(2 * (n - mid));
+  std::thread worker([&]() { b.build(right, mid, count); });
+  b.build(nodes, 0, mid);
+  worker.join();
+  const std::uint32_t base = static_cast<std::uint32_t>(nodes.size());
+  for (Node& node : right)
+    if (node.count == 0) node.first += base;
+  nodes.insert(nodes.end(), right.begin(), right.end());
+  Build::join(nodes[0], nodes[1], nodes[base], base);
+}
+
 }  // namespace
 
 TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned threads) : mesh_(mesh) {
   const std::size_t n = mesh.size();
   if (n == 0) return;
   std::vector<Prim> prims(n);
-  order_.resize(n);
-  for (std::size_t t = 0; t < n; ++t) {
-    Prim& p = prims[t];
-    for (int v = 0; v < 3; ++v) {
-      const Vec3& x = mesh.vertex(t, v);
-      for (int k = 0; k < 3; ++k) {
-        p.box.lo[k] = std::min(p.box.lo[k], down(x[k]));
-        p.box.hi[k] = std::max(p.box.hi[k], up(x[k]));
+  auto fill = [&](std::size_t begin, std::size_t end) {
+    for (std::size_t t = begin; t < end; ++t) {
+      Prim& p = prims[t];
+      for (int v = 0; v < 3; ++v) {
+        const Vec3& x = mesh.vertex(t, v);
+        for (int k = 0; k < 3; ++k) {
+          p.box.lo[k] = std::min(p.box.lo[k], down(x[k]));
+          p.box.hi[k] = std::max(p.box.hi[k], up(x[k]));
+        }
       }
+      for (int k = 0; k < 3; ++k) p.centre[k] = 0.5f * p.box.lo[k] + 0.5f * p.box.hi[k];
+      p.index = static_cast<std::uint32_t>(t);
     }
-    for (int k = 0; k < 3; ++k) p.centre[k] = 0.5f * p.box.lo[k] + 0.5f * p.box.hi[k];
-    order_[t] = static_cast<std::uint32_t>(t);
+  };
+  const bool parallel = threads >= 2 && n >= 4096;
+  if (parallel) {
+    std::thread half([&]() { fill(n / 2, n); });
+    fill(0, n / 2);
+    half.join();
+  } else {
+    fill(0, n);
   }
-  const Build b{mesh, prims, order_, std::max(1, leafSize)};
-  const std::uint32_t count = static_cast<std::uint32_t>(n);
-  // At most 2n - 1 nodes: reserving that never reallocates, and untouched capacity is never resident.
-  nodes_.reserve(2 * n);
-  if (threads < 2 || n < 4096) {
-    b.build(nodes_, 0, count);
-    return;
-  }
-  // The root's split here, its left subtree on this thread straight into nodes_, its right subtree on
-  // a second thread into its own array, appended with the right-child indices shifted: the same tree
-  // as the serial build.
-  nodes_.emplace_back();
-  const std::uint32_t mid = b.split(0, count, b.centreBox(0, count));
-  std::vector<Node> right;
-  right.reserve(2 * (n - mid));
-  std::thread worker([&]() { b.build(right, mid, count); });
-  b.build(nodes_, 0, mid);
-  worker.join();
-  const std::uint32_t base = static_cast<std::uint32_t>(nodes_.size());
-  for (Node& node : right)
-    if (node.count == 0) node.first += base;
-  nodes_.insert(nodes_.end(), right.begin(), right.end());
-  Build::join(nodes_[0], nodes_[1], nodes_[base], base);
+  buildNodes(mesh, prims, leafSize, parallel, nodes_);
+  order_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) order_[i] = prims[i].index;
 }
 
 }  // namespace clod_haptics
