@@ -11,12 +11,11 @@
 namespace clod_haptics {
 namespace {
 
-constexpr int kBits = 21;
 #ifndef CLOD_CELL_FACTOR
 #define CLOD_CELL_FACTOR 2.0
 #endif
 constexpr double kCellFactor = CLOD_CELL_FACTOR;  // cell side in pointer radii
-constexpr std::int64_t kMaxDim = (1 << kBits) - 1;
+constexpr std::int64_t kMaxDim = (1 << CellGrid::kBits) - 1;
 
 std::uint64_t mix(std::uint64_t k) {
   k ^= k >> 33;
@@ -89,7 +88,7 @@ bool clippedRange(const Vec3& a, const Vec3& b, const Vec3& c, double half, doub
 }  // namespace
 
 CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle,
-                   Index index) {
+                   Index index, double sliceCandidates) {
   const double maxEntries = std::max(1e6, entriesPerTriangle * static_cast<double>(mesh.size()));
   if (!(radius > 0.0) || !std::isfinite(radius))
     throw InvalidParameter("cell grid radius must be finite and > 0, got " + std::to_string(radius));
@@ -134,7 +133,8 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
 
   const double tiny = std::max(1e-9 * h, 4e-9 * magnitude);
   // Candidates of a range of triangles; two threads each fill their own list.
-  auto collect = [&](std::size_t begin, std::size_t end, std::vector<Candidate>& candidates) {
+  auto collect = [&](std::size_t begin, std::size_t end, std::int64_t zBegin, std::int64_t zEnd,
+                     std::vector<Candidate>& candidates) {
     for (std::size_t t = begin; t < end; ++t) {
       const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
       const Vec3& n = mesh.normals[t];
@@ -147,6 +147,9 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
         l[k] = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor((lo[k] - origin_[k]) * inv_)));
         u[k] = std::min<std::int64_t>(dims_[k] - 1, static_cast<std::int64_t>(std::floor((hi[k] - origin_[k]) * inv_)));
       }
+      l[2] = std::max(l[2], zBegin);
+      u[2] = std::min(u[2], zEnd - 1);
+      if (l[2] > u[2]) continue;
       for (std::int64_t x = l[0]; x <= u[0]; ++x)
         for (std::int64_t y = l[1]; y <= u[1]; ++y)
           for (std::int64_t z = l[2]; z <= u[2]; ++z) {
@@ -180,75 +183,93 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
     if (p.distance != q.distance) return p.distance < q.distance;
     return p.triangle < q.triangle;
   };
-  // Two threads each collect and sort their half; the halves are merged straight into the entries.
-  std::vector<Candidate> first, second;
-  {
-    const std::size_t half = mesh.size() / 2;
-    std::thread helper([&] {
-      collect(half, mesh.size(), second);
-      std::sort(second.begin(), second.end(), order);
-    });
-    collect(0, half, first);
-    std::sort(first.begin(), first.end(), order);
-    helper.join();
-  }
-  // Visits the candidates of both halves in merged order.
-  auto merged = [&](auto&& visit) {
-    std::size_t i = 0, j = 0;
-    while (i < first.size() || j < second.size()) {
-      if (j == second.size() || (i < first.size() && order(first[i], second[j])))
-        visit(first[i++]);
-      else
-        visit(second[j++]);
-    }
-  };
-  std::size_t cells = 0;
-  {
-    std::uint64_t last = kOutside;
-    merged([&](const Candidate& c) {
-      cells += c.key != last;
-      last = c.key;
-    });
-  }
-  cellCount_ = cells;
-
   // The first sphere listing each triangle (every triangle is listed: the coverage invariant).
   const std::vector<std::uint32_t> sphereOf = firstSphereOfTriangles(set, mesh.size());
 
-  // Entries: per cell a header, then its candidates; headers' positions in key order.
-  entries_.resize(first.size() + second.size() + cells);
-  std::vector<std::uint64_t> headers;
-  std::vector<std::uint64_t> keys;
-  headers.reserve(cells);
-  keys.reserve(cells);
+  // Candidates are collected in slices of z (keys sort by z first, so slices come in key order), each
+  // slice's two halves (two threads) sorted and merged straight into that slice's entries: the 24-byte
+  // candidates of one slice at a time, not of the whole grid, are held beside the 12-byte entries.
+  double expected = 0.0;
   {
+    const double slab = (2.0 * reach * area) / (h * h * h);
+    const double span = (edge + 2.0 * reach) / h;
+    expected = std::max(slab, 0.6 * span * span * span * static_cast<double>(mesh.size()));
+  }
+  const std::int64_t slices =
+      std::clamp<std::int64_t>(static_cast<std::int64_t>(expected / std::max(1.0, sliceCandidates)) + 1, 1, std::min<std::int64_t>(64, dims_[2]));
+  std::vector<std::vector<Entry>> parts;
+  std::vector<std::uint64_t> headers;  // per cell: its header's position in the entries
+  std::vector<std::uint64_t> keys;
+  std::size_t cells = 0, stored = 0;
+  std::vector<Candidate> first, second;
+  std::vector<std::uint32_t> seen;
+  for (std::int64_t slice = 0; slice < slices; ++slice) {
+    const std::int64_t zBegin = dims_[2] * slice / slices, zEnd = dims_[2] * (slice + 1) / slices;
+    first.clear();
+    second.clear();
+    const std::size_t half = mesh.size() / 2;
+    std::thread helper([&] {
+      collect(half, mesh.size(), zBegin, zEnd, second);
+      std::sort(second.begin(), second.end(), order);
+    });
+    collect(0, half, zBegin, zEnd, first);
+    std::sort(first.begin(), first.end(), order);
+    helper.join();
+    // Visits the candidates of both halves in merged order.
+    auto merged = [&](auto&& visit) {
+      std::size_t i = 0, j = 0;
+      while (i < first.size() || j < second.size()) {
+        if (j == second.size() || (i < first.size() && order(first[i], second[j])))
+          visit(first[i++]);
+        else
+          visit(second[j++]);
+      }
+    };
+    std::size_t sliceCells = 0;
+    {
+      std::uint64_t last = kOutside;
+      merged([&](const Candidate& c) {
+        sliceCells += c.key != last;
+        last = c.key;
+      });
+    }
+    // Entries: per cell a header, then its candidates.
+    std::vector<Entry> part(first.size() + second.size() + sliceCells);
     std::size_t at = 0, header = 0;
     std::uint64_t last = kOutside;
-    std::vector<std::uint32_t> seen;
     auto close = [&]() {
       if (last == kOutside) return;
       std::sort(seen.begin(), seen.end());
       const auto spheres = static_cast<std::uint32_t>(std::unique(seen.begin(), seen.end()) - seen.begin());
-      Entry& h = entries_[header];
-      h = Entry{static_cast<std::uint32_t>(at - header - 1), 0.0f, {0, 0, 0}, 0};
-      std::memcpy(&h.centreDistance, &spheres, sizeof spheres);
+      Entry& e = part[header];
+      e = Entry{static_cast<std::uint32_t>(at - header - 1), 0.0f, {0, 0, 0}, 0};
+      std::memcpy(&e.centreDistance, &spheres, sizeof spheres);
     };
     merged([&](const Candidate& c) {
       if (c.key != last) {
         close();
         seen.clear();
         header = at++;
-        headers.push_back(header);
+        headers.push_back(stored + header);
         keys.push_back(c.key);
         last = c.key;
       }
-      entries_[at++] = Entry{c.triangle, c.distance, {c.direction[0], c.direction[1], c.direction[2]}, 0};
+      part[at++] = Entry{c.triangle, c.distance, {c.direction[0], c.direction[1], c.direction[2]}, 0};
       seen.push_back(sphereOf[c.triangle]);
     });
     close();
+    cells += sliceCells;
+    stored += part.size();
+    if (!part.empty()) parts.push_back(std::move(part));
   }
   std::vector<Candidate>().swap(first);
   std::vector<Candidate>().swap(second);
+  cellCount_ = cells;
+  entries_.reserve(stored);
+  for (std::vector<Entry>& part : parts) {
+    entries_.insert(entries_.end(), part.begin(), part.end());
+    std::vector<Entry>().swap(part);
+  }
 
   // Per cell, the index entry: the slab. A triangle point within radius R of a point of the cell is
   // within h / 2 + R of the centre along each axis and within 3 h / 2 + sqrt(3) R in the L1 norm (the
@@ -342,28 +363,8 @@ std::size_t CellGrid::bytes() const {
          slots_.capacity() * sizeof(Slot);
 }
 
-std::uint64_t CellGrid::keyOf(const Vec3& p) const noexcept {
-  std::uint64_t key = 0;
-  for (int k = 0; k < 3; ++k) {
-    const double q = std::floor((p[k] - origin_[k]) * inv_);
-    if (!(q >= 0.0) || q >= static_cast<double>(dims_[k])) return kOutside;
-    key |= static_cast<std::uint64_t>(q) << (k * kBits);
-  }
-  return key;
-}
-
-const CellGrid::CellRef* CellGrid::find(std::uint64_t key) const noexcept {
-  if (key == kOutside || entries_.empty()) return nullptr;
-  if (!words_.empty()) {
-    const std::uint64_t m = (1ull << kBits) - 1;
-    const std::uint64_t linear =
-        (key & m) + static_cast<std::uint64_t>(dims_[0]) *
-                        (((key >> kBits) & m) + static_cast<std::uint64_t>(dims_[1]) * ((key >> (2 * kBits)) & m));
-    const Word& w = words_[linear >> 6];
-    const std::uint64_t bit = 1ull << (linear & 63);
-    if (!(w.bits & bit)) return nullptr;
-    return refs_.data() + w.rank + static_cast<std::uint32_t>(__builtin_popcountll(w.bits & (bit - 1)));
-  }
+const CellGrid::CellRef* CellGrid::findHashed(std::uint64_t key) const noexcept {
+  if (key == kOutside || slots_.empty()) return nullptr;
   std::uint64_t slot = mix(key) & mask_;
   for (;;) {
     const Slot& c = slots_[slot];
@@ -371,14 +372,6 @@ const CellGrid::CellRef* CellGrid::find(std::uint64_t key) const noexcept {
     if (c.key == kOutside) return nullptr;
     slot = (slot + 1) & mask_;
   }
-}
-
-Vec3 CellGrid::centreOf(std::uint64_t key) const noexcept {
-  const std::uint64_t m = (1ull << kBits) - 1;
-  return origin_ + (Vec3(static_cast<double>(key & m), static_cast<double>((key >> kBits) & m),
-                         static_cast<double>((key >> (2 * kBits)) & m)) +
-                    Vec3::Constant(0.5)) *
-                       cell_;
 }
 
 }  // namespace clod_haptics

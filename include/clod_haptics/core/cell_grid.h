@@ -67,9 +67,11 @@ class CellGrid {
    * candidates per triangle on average (12 bytes each), so memory stays linear in the mesh.
    * \param index Auto: dense when its bit index takes at most max(4 MiB, 16 bytes per triangle),
    * hashed otherwise; Dense or Hashed force one (Dense falls back to Hashed beyond 2^34 cells).
+   * \param sliceCandidates the build collects candidates in slices of z of about this many (the peak
+   * memory of the build is the entries plus one slice's 24-byte candidates); the grid is the same.
    */
   CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle = 24.0,
-           Index index = Index::Auto);
+           Index index = Index::Auto, double sliceCandidates = 2e6);
 
   /** \brief The largest pointer radius the grid answers for; larger pointers need another descent. */
   double radius() const { return radius_; }
@@ -96,9 +98,27 @@ class CellGrid {
   };
 
   /** \brief Cell key of p, or kOutside when p is outside the grid (then no triangle is within radius()). */
-  std::uint64_t keyOf(const Vec3& p) const noexcept;
+  std::uint64_t keyOf(const Vec3& p) const noexcept {
+    std::uint64_t key = 0;
+    for (int k = 0; k < 3; ++k) {
+      const double q = (p[k] - origin_[k]) * inv_;
+      if (!(q >= 0.0) || q >= static_cast<double>(dims_[k])) return kOutside;
+      key |= static_cast<std::uint64_t>(q) << (k * kBits);  // truncation: floor for q >= 0
+    }
+    return key;
+  }
   /** \brief The index entry of the cell of a key, or null when no triangle is near it. */
-  const CellRef* find(std::uint64_t key) const noexcept;
+  const CellRef* find(std::uint64_t key) const noexcept {
+    if (words_.empty() || key == kOutside) return findHashed(key);
+    constexpr std::uint64_t m = (1ull << kBits) - 1;
+    const std::uint64_t linear =
+        (key & m) + static_cast<std::uint64_t>(dims_[0]) *
+                        (((key >> kBits) & m) + static_cast<std::uint64_t>(dims_[1]) * ((key >> (2 * kBits)) & m));
+    const Word& w = words_[linear >> 6];
+    const std::uint64_t bit = 1ull << (linear & 63);
+    if (!(w.bits & bit)) return nullptr;
+    return refs_.data() + w.rank + static_cast<std::uint32_t>(__builtin_popcountll(w.bits & (bit - 1)));
+  }
   /** \brief The candidates of a cell. */
   Cell cell(const CellRef& ref) const noexcept {
     const Entry* header =
@@ -119,9 +139,16 @@ class CellGrid {
     return std::abs(along - unit_ * ref.offset) - unit_ * ref.halfWidth - slabPad_ > r * kSlabRadius;
   }
   /** \brief Centre of the cell of a key. */
-  Vec3 centreOf(std::uint64_t key) const noexcept;
+  Vec3 centreOf(std::uint64_t key) const noexcept {
+    constexpr std::uint64_t m = (1ull << kBits) - 1;
+    return origin_ + (Vec3(static_cast<double>(key & m), static_cast<double>((key >> kBits) & m),
+                           static_cast<double>((key >> (2 * kBits)) & m)) +
+                      Vec3::Constant(0.5)) *
+                         cell_;
+  }
 
   static constexpr std::uint64_t kOutside = ~0ull;
+  static constexpr int kBits = 21;  ///< bits per axis in a key
 
  private:
   struct Word {
@@ -134,6 +161,7 @@ class CellGrid {
     std::uint64_t header;
     CellRef ref;
   };
+  const CellRef* findHashed(std::uint64_t key) const noexcept;
   static constexpr double kSlabRadius = 1.0 + 1.7320508075688772 / 254.0;  // bound of |m|
   double radius_ = 0.0;
   double cell_ = 0.0;
