@@ -49,6 +49,17 @@ constexpr double kHalfDiagonal = 0.8660254037844386;
 // of the triangle is inside.
 bool clippedRange(const Vec3& a, const Vec3& b, const Vec3& c, double half, double diamond, const Vec3& n, double& lo,
                   double& hi) {
+  // Most candidates of a fine mesh lie wholly inside the region (no clipping) or wholly outside one
+  // of its planes (nothing inside).
+  auto inside = [&](const Vec3& v) { return v.cwiseAbs().maxCoeff() <= half && v.lpNorm<1>() <= diamond; };
+  if (inside(a) && inside(b) && inside(c)) {
+    const double x = n.dot(a), y = n.dot(b), z = n.dot(c);
+    lo = std::min({x, y, z});
+    hi = std::max({x, y, z});
+    return true;
+  }
+  for (int k = 0; k < 3; ++k)
+    if ((a[k] > half && b[k] > half && c[k] > half) || (a[k] < -half && b[k] < -half && c[k] < -half)) return false;
   Vec3 poly[2][24];
   int count = 3;
   poly[0][0] = a;
