@@ -66,30 +66,89 @@ std::uint32_t labelPoints(const std::vector<std::uint32_t>& clusterOfItem, const
 
 }  // namespace
 
-SurfaceDistance::SurfaceDistance(const TriangleMesh& mesh) : mesh_(mesh) {
-  std::vector<Eigen::AlignedBox3d> boxes(mesh.size());
-  for (std::size_t t = 0; t < mesh.size(); ++t) {
-    boxes[t].setEmpty();
-    for (int k = 0; k < 3; ++k) boxes[t].extend(mesh.vertex(t, k));
+namespace {
+
+// Spreads the low 21 bits of x to every third bit (Morton code).
+std::uint64_t spread3(std::uint64_t x) {
+  x &= 0x1fffff;
+  x = (x | x << 32) & 0x1f00000000ffffull;
+  x = (x | x << 16) & 0x1f0000ff0000ffull;
+  x = (x | x << 8) & 0x100f00f00f00f00full;
+  x = (x | x << 4) & 0x10c30c30c30c30c3ull;
+  x = (x | x << 2) & 0x1249249249249249ull;
+  return x;
+}
+
+inline double boxDistance2(const Vec3& p, const double* lo, const double* hi) {
+  double sum = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    const double below = lo[k] - p[k], above = p[k] - hi[k];
+    const double d = below > above ? below : above;
+    sum += d > 0.0 ? d * d : 0.0;
   }
-  buildBoxTree(boxes, 4, 0.0, nodes_, order_);
+  return sum;  // an empty box (lo > hi) gives a positive value; its leaves hold no triangles anyway
+}
+
+}  // namespace
+
+SurfaceDistance::SurfaceDistance(const TriangleMesh& mesh) : mesh_(mesh) {
+  const std::size_t n = mesh.size();
+  if (n == 0) return;
+  // Triangles in Morton order of their centroids, runs of kLeaf per leaf, and a complete binary tree
+  // over the leaves in heap layout (children of i at 2i + 1 and 2i + 2): built in O(n log n) by one
+  // sort, cheap next to the median-split tree since it is rebuilt on every build(d).
+  const Eigen::AlignedBox3d box = mesh.bounds();
+  const Vec3 scale = (2097151.0 / box.sizes().array().max(1e-300)).matrix();
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);
+  for (std::size_t t = 0; t < n; ++t) {
+    const Vec3 q = (mesh.centroid(t) - box.min()).cwiseProduct(scale).cwiseMax(0.0).cwiseMin(2097151.0);
+    const std::uint64_t code = spread3(static_cast<std::uint64_t>(q.x())) |
+                               spread3(static_cast<std::uint64_t>(q.y())) << 1 |
+                               spread3(static_cast<std::uint64_t>(q.z())) << 2;
+    keyed[t] = {code, static_cast<std::uint32_t>(t)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  order_.resize(n);
+  for (std::size_t t = 0; t < n; ++t) order_[t] = keyed[t].second;
+  const std::size_t leaves = (n + kLeaf - 1) / kLeaf;
+  leaves_ = 1;
+  while (leaves_ < leaves) leaves_ <<= 1;
+  boxes_.assign(2 * leaves_ - 1, Box{});
+  for (std::size_t l = 0; l < leaves; ++l) {
+    Box& b = boxes_[leaves_ - 1 + l];
+    for (std::size_t i = l * kLeaf; i < std::min(n, (l + 1) * kLeaf); ++i)
+      for (int v = 0; v < 3; ++v) {
+        const Vec3& p = mesh.vertex(order_[i], v);
+        for (int k = 0; k < 3; ++k) {
+          b.lo[k] = std::min(b.lo[k], p[k]);
+          b.hi[k] = std::max(b.hi[k], p[k]);
+        }
+      }
+  }
+  for (std::size_t i = leaves_ - 1; i-- > 0;)
+    for (int k = 0; k < 3; ++k) {
+      boxes_[i].lo[k] = std::min(boxes_[2 * i + 1].lo[k], boxes_[2 * i + 2].lo[k]);
+      boxes_[i].hi[k] = std::max(boxes_[2 * i + 1].hi[k], boxes_[2 * i + 2].hi[k]);
+    }
 }
 
 double SurfaceDistance::signedDistance(const Vec3& p, double bound) const {
-  if (nodes_.empty()) return std::numeric_limits<double>::infinity();
+  if (boxes_.empty()) return std::numeric_limits<double>::infinity();
   // Pruned at the bound (a little beyond it, against rounding); nothing within it: +bound.
   double best = std::isfinite(bound) ? bound * bound * (1.0 + 1e-9) + 1e-300 : std::numeric_limits<double>::infinity();
   std::uint32_t bestTriangle = kNone;
   Vec3 bestPoint = p;
-  std::uint32_t stack[128];  // the median-split tree is balanced: depth ~ log2(n / 4)
+  std::size_t stack[64];  // the tree is complete: depth log2(leaves) < 64
   int top = 0;
   stack[top++] = 0;
+  const std::size_t n = order_.size();
   while (top > 0) {
-    const std::uint32_t index = stack[--top];
-    const BoxNode& node = nodes_[index];
-    if (squaredDistanceToNode(node, p.x(), p.y(), p.z()) >= best) continue;
-    if (node.count > 0) {
-      for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
+    const std::size_t index = stack[--top];
+    const Box& box = boxes_[index];
+    if (boxDistance2(p, box.lo, box.hi) >= best) continue;
+    if (index >= leaves_ - 1) {
+      const std::size_t leaf = index - (leaves_ - 1);
+      for (std::size_t i = leaf * kLeaf; i < std::min(n, (leaf + 1) * kLeaf); ++i) {
         const std::uint32_t t = order_[i];
         const Vec3 q = closestPointOnTriangle(p, mesh_.vertex(t, 0), mesh_.vertex(t, 1), mesh_.vertex(t, 2));
         const double d2 = (q - p).squaredNorm();
@@ -101,10 +160,9 @@ double SurfaceDistance::signedDistance(const Vec3& p, double bound) const {
       }
       continue;
     }
-    const std::uint32_t left = index + 1, right = node.first;
-    const double dl = squaredDistanceToNode(nodes_[left], p.x(), p.y(), p.z());
-    const double dr = squaredDistanceToNode(nodes_[right], p.x(), p.y(), p.z());
-    if (top + 2 > 128) continue;  // unreachable for a balanced tree; never overflow
+    const std::size_t left = 2 * index + 1, right = left + 1;
+    const double dl = boxDistance2(p, boxes_[left].lo, boxes_[left].hi);
+    const double dr = boxDistance2(p, boxes_[right].lo, boxes_[right].hi);
     if (dl <= dr) {  // nearer child on top
       stack[top++] = right;
       stack[top++] = left;
@@ -206,26 +264,32 @@ std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::
   // its centre, over 4/3 pi (so that it compares with d^3): with rho the signed distance of the centre
   // and h = R - rho the cap's height, h^2 (3R - h) / 4; a centre outside counts as h = 2R (the whole ball).
   // The excess grows with h, and rho is at most the distance to the nearest vertex of the node's own
-  // triangles, so R minus that distance bounds h from below: when that bound already exceeds the
-  // threshold, the bound is returned and the distance query (the costly part) is skipped; the decision
-  // and the best centre below are the same as with exact values.
+  // triangles, so R minus that distance bounds h from below: a candidate whose bound already exceeds
+  // d^3 or the best exact excess found gets no distance query (the costly part); the decision and the
+  // chosen centre are those of exact values.
   auto capVolume = [](double r, double h) { return 0.25 * h * h * (3.0 * r - h); };
-  auto excess = [&](const Vec3& c, std::uint32_t begin, std::uint32_t end, double threshold) {
-    double far2 = 0.0, near2 = std::numeric_limits<double>::infinity();
+  constexpr int kMaxCandidates = 7;
+  struct Candidate {
+    Vec3 centre;
+    double far2, near2, lower;
+  };
+  // Fills far2 / near2 of every candidate in one pass over the node's vertices.
+  auto reach = [&](Candidate* cand, int count, std::uint32_t begin, std::uint32_t end) {
+    for (int j = 0; j < count; ++j) {
+      cand[j].far2 = 0.0;
+      cand[j].near2 = std::numeric_limits<double>::infinity();
+    }
     for (std::uint32_t i = begin; i < end; ++i) {
       const std::uint32_t t = itemTriangle[items[i]];
       for (int v = 0; v < 3; ++v) {
-        const double d2 = (mesh.vertex(t, v) - c).squaredNorm();
-        far2 = std::max(far2, d2);
-        near2 = std::min(near2, d2);
+        const Vec3& p = mesh.vertex(t, v);
+        for (int j = 0; j < count; ++j) {
+          const double d2 = (p - cand[j].centre).squaredNorm();
+          cand[j].far2 = std::max(cand[j].far2, d2);
+          cand[j].near2 = std::min(cand[j].near2, d2);
+        }
       }
     }
-    const double r = std::sqrt(far2);
-    const double lower = capVolume(r, std::clamp(r - std::sqrt(near2), 0.0, 2.0 * r));
-    if (!std::isfinite(lower)) return std::numeric_limits<double>::infinity();
-    if (lower > threshold) return lower;
-    const double e = capVolume(r, std::clamp(r - surface.signedDistance(c, r), 0.0, 2.0 * r));
-    return std::isfinite(e) ? e : std::numeric_limits<double>::infinity();
   };
 
   std::vector<std::uint32_t> clusterOf(m, 0);
@@ -252,26 +316,41 @@ std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::
     }
     meanCentroid /= size;
     depth /= size;
-    Vec3 best = meanCentroid;  // the fallback (a patch on the surface): every other candidate beats it
-    double bestExcess = std::numeric_limits<double>::infinity();
+    Candidate cand[kMaxCandidates];
+    int count = 0;
+    if (weights > 0.0) cand[count++].centre = meanPoint / weights;
+    const double normalLength = meanNormal.norm();
+    if (normalLength > 1e-9 * size && depth > 0.0) {
+      const Vec3 inward = -meanNormal / normalLength;
+      for (const double f : {1.0, 0.75, 0.5, 0.25, 0.125}) cand[count++].centre = meanCentroid + f * depth * inward;
+    }
+    int kept = 0;
+    for (int j = 0; j < count; ++j)
+      if (cand[j].centre.allFinite()) cand[kept++] = cand[j];
+    count = kept;
+    if (count == 0) cand[count++].centre = meanCentroid;  // no depth to go by: the patch itself
+    reach(cand, count, r.begin, r.end);
     // A single triangle is kept whatever d is: its centre is chosen on exact values.
     const double threshold = r.end - r.begin == 1 ? std::numeric_limits<double>::infinity() : d3;
-    auto consider = [&](const Vec3& c) {
-      if (!c.allFinite()) return;
-      const double e = excess(c, r.begin, r.end, threshold);
-      if (e < bestExcess) {
-        bestExcess = e;
-        best = c;
-      }
-    };
-    if (weights > 0.0) consider(meanPoint / weights);
-    const double normalLength = meanNormal.norm();
-    if (normalLength > 1e-9 * size) {
-      const Vec3 inward = -meanNormal / normalLength;
-      if (depth > 0.0)
-        for (const double f : {1.0, 0.75, 0.5, 0.25, 0.125}) consider(meanCentroid + f * depth * inward);
+    for (int j = 0; j < count; ++j) {
+      const double radius = std::sqrt(cand[j].far2);
+      cand[j].lower = capVolume(radius, std::clamp(radius - std::sqrt(cand[j].near2), 0.0, 2.0 * radius));
+      if (!std::isfinite(cand[j].lower)) cand[j].lower = std::numeric_limits<double>::infinity();
     }
-    if (!std::isfinite(bestExcess)) bestExcess = excess(best, r.begin, r.end, threshold);  // no candidate: the patch itself
+    // Exact excess (one distance query) only for candidates whose bound could still pass and win;
+    // the lowest bounds first, so that fewer are left to query (ties keep the candidates' order).
+    std::stable_sort(cand, cand + count, [](const Candidate& x, const Candidate& y) { return x.lower < y.lower; });
+    Vec3 best = cand[0].centre;
+    double bestExcess = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < count; ++j) {
+      if (cand[j].lower > threshold || cand[j].lower >= bestExcess) continue;
+      const double radius = std::sqrt(cand[j].far2);
+      const double e = capVolume(radius, std::clamp(radius - surface.signedDistance(cand[j].centre, radius), 0.0, 2.0 * radius));
+      if (std::isfinite(e) && e < bestExcess) {
+        bestExcess = e;
+        best = cand[j].centre;
+      }
+    }
     if (r.end - r.begin == 1 || bestExcess <= d3) {
       for (std::uint32_t i = r.begin; i < r.end; ++i) clusterOf[items[i]] = static_cast<std::uint32_t>(clusterCentre.size());
       clusterCentre.push_back(best);

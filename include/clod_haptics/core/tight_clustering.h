@@ -1,10 +1,10 @@
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
 
-#include "clod_haptics/core/box_tree.h"
 #include "clod_haptics/core/clustering.h"
 #include "clod_haptics/core/mesh.h"
 
@@ -45,7 +45,8 @@ class TightClustering : public Clustering {
 
 /**
  * \brief Signed distance from p to the mesh: the distance to the nearest point, negative when p is
- * on the outer side of the face normal of the nearest triangle. A BoxTree over the triangles.
+ * on the outer side of the face normal of the nearest triangle. A bounding-box tree over the triangles
+ * in Morton order, built by one sort.
  */
 class SurfaceDistance {
  public:
@@ -58,9 +59,15 @@ class SurfaceDistance {
   double signedDistance(const Vec3& p, double bound = std::numeric_limits<double>::infinity()) const;
 
  private:
+  static constexpr std::size_t kLeaf = 4;  ///< triangles per leaf
+  struct Box {
+    double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL};
+    double hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+  };
   const TriangleMesh& mesh_;
-  std::vector<BoxNode> nodes_;
-  std::vector<std::uint32_t> order_;
+  std::vector<Box> boxes_;             ///< complete binary tree in heap layout, leaves last
+  std::vector<std::uint32_t> order_;  ///< triangles in Morton order, kLeaf per leaf
+  std::size_t leaves_ = 0;            ///< leaves in the tree (a power of two)
 };
 
 }  // namespace clod_haptics
