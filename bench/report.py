@@ -330,6 +330,11 @@ def main():
             "same ray-cast placement: single-link clustering (`clod`, the default) and the cube clustering "
             "(`clod-cube`, `makeClustering(\"cube\")`); the octree has the single-link set's sphere count. Build ms: "
             "placement + clustering of that level.\n")
+        md.append(
+            "The tight clustering (`clod-tight`, `makeClustering(\"tight\")`, same placement) in a table of its own, "
+            "beside an octree of its own sphere count (`octree-tight`): the surface split top-down into patches, "
+            "each sphere centred deep inside and kept when its cap beyond the surface holds at most a ball of "
+            "radius d. Its d is that radius, not the single-link distance: compare rows by sphere count.\n")
         by = defaultdict(dict)
         for r in tight:
             by[(r["mesh"], r["d"])][r["kind"]] = r
@@ -353,6 +358,18 @@ def main():
                          "cube spheres", "cube outside", "cube union", "cube covered", "cube build ms",
                          "octree spheres", "depth", "octree outside", "octree union", "octree covered",
                          "MC vol / exact", "open edges"], rows))
+        rows = []
+        for (mesh, d), k in by.items():
+            t, o = k.get("clod-tight"), k.get("octree-tight")
+            if not t or not o:
+                continue
+            rows.append([mesh, d, t["spheres"], f(t["outside_volume_rel"]), f(t["union_volume_rel"]),
+                         f"{num(t['surface_covered']):.6f}", f(t["build_ms"]), o["spheres"], o["octree_depth"],
+                         f(o["outside_volume_rel"]), f(o["union_volume_rel"]), f"{num(o['surface_covered']):.6f}"])
+        if rows:
+            md.append(table(["mesh", "d", "tight spheres", "tight outside", "tight union", "tight covered",
+                             "tight build ms", "octree spheres", "depth", "octree outside", "octree union",
+                             "octree covered"], rows))
         plot_tightness(out, tight)
         md.append("![tightness](tightness.png)\n")
 
@@ -470,6 +487,15 @@ def targets(build, sweep, peers, tight, growth):
                      f"d = {best['d']}: {best['spheres']} spheres, covered {cov:.6f}, outside {f(out)}, "
                      f"built in {f(best['build_ms'])} ms",
                      met(cov == 1.0 and out <= 0.40 and num(best["build_ms"]) < 50)])
+    tight_rows = [r for r in tight if r["mesh"] == HEADLINE_MESH and r["kind"] == "clod-tight"]
+    if tight_rows:
+        best = min(tight_rows, key=lambda r: abs(math.log(max(num(r["spheres"]), 1) / 508.0)))
+        cov = num(best["surface_covered"])
+        out = num(best["outside_volume_rel"])
+        rows.append([f"... the same with the tight clustering (clod-tight, ~508 spheres)",
+                     f"d = {best['d']}: {best['spheres']} spheres, covered {cov:.6f}, outside {f(out)}, "
+                     f"built in {f(best['build_ms'])} ms",
+                     met(cov == 1.0 and out <= 0.40 and num(best["build_ms"]) < 50)])
     big = [g for g in growth if num(g["triangles"]) >= 7e5]
     if big:
         tps = [num(g["build_tri_per_s"]) for g in big]
@@ -568,9 +594,9 @@ def plot_peers(out, peers, meshes):
 
 def plot_tightness(out, tight):
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    styles = {"clod": "-", "clod-cube": "--", "octree": ":"}
+    styles = {"clod": "-", "clod-cube": "--", "octree": ":", "clod-tight": "-.", "octree-tight": ":"}
     colour = {m: f"C{i % 10}" for i, m in enumerate(dict.fromkeys(r["mesh"] for r in tight))}
-    for kind, marker in [("clod", "o"), ("clod-cube", "^"), ("octree", "s")]:
+    for kind, marker in [("clod", "o"), ("clod-cube", "^"), ("octree", "s"), ("clod-tight", "D"), ("octree-tight", "x")]:
         for mesh in colour:
             rs = [r for r in tight if r["mesh"] == mesh and r["kind"] == kind and not math.isnan(num(r["outside_volume_rel"]))]
             if not rs:
@@ -582,7 +608,8 @@ def plot_tightness(out, tight):
     ax.set_yscale("log")
     ax.set_xlabel("spheres")
     ax.set_ylabel("sphere volume outside the mesh / mesh volume")
-    ax.set_title("colour: mesh; solid o: single-link, dashed ^: cube, dotted s: octree", fontsize=8)
+    ax.set_title("colour: mesh; solid o: single-link, dashed ^: cube, dash-dot D: tight, dotted s/x: octree "
+                 "(single-link / tight count)", fontsize=8)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=6)
     fig.tight_layout()
