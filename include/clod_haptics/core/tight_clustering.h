@@ -26,9 +26,9 @@ namespace clod_haptics {
  *
  * A node's centre is the candidate with the least excess among the mean of the placement's points
  * on its triangles and the mean of the triangles' centroids pushed inward along their mean normal by
- * 1, 3/4, 1/2, 1/4 and 1/8 of the mean depth of those points below their triangles. TightPlacement
- * puts the points half way to the surface behind (near the medial axis), which is what this reads
- * best; PaperPlacement works too (its points sit a quarter of the way to the opposite triangle).
+ * 1, 3/4, 1/2, 1/4 and 1/8 of the mean depth of those points below their triangles. Any placement
+ * works; on the shared meshes PaperPlacement (points a quarter of the way to the opposite triangle)
+ * gave as tight or tighter sets than TightPlacement (half way to the first surface behind).
  * The builder still sets each radius to reach every vertex of every listed triangle, so coverage
  * holds whatever the centres are.
  *

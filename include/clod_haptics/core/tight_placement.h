@@ -11,8 +11,9 @@ namespace clod_haptics {
  * centroid to the first surface it meets (any orientation): the middle of the local thickness, near
  * the medial axis. Its radius reaches the triangle's farthest vertex. A triangle whose ray meets
  * nothing (open mesh, outward winding) or that has zero area gets its sphere at its centroid (counted
- * as unpaired or degenerate). Cheaper than PaperPlacement (first hit only, n spheres instead of 2n);
- * the placement TightClustering reads its depth from. Ray casts on all hardware threads by default.
+ * as unpaired or degenerate). Simpler than PaperPlacement (first hit only, n spheres instead of 2n),
+ * a medial-axis estimate for any clustering; with TightClustering the paper's placement measured as
+ * tight or tighter. Ray casts on all hardware threads by default.
  */
 class TightPlacement : public SpherePlacement {
  public:
