@@ -138,6 +138,7 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
   // Rounding of the slab test's products and of the clipped points: relative 1e-9 of the cell, plus pad.
   slabPad_ = 1e-9 * h + 4.0 * pad;
   const double reach = radius + 0.8660254037844386 * h + pad;
+  distanceUnit_ = reach / 255.0;
   origin_ = bounds.min() - Vec3::Constant(reach + h);
   for (int k = 0; k < 3; ++k)
     dims_[k] = std::min<std::int64_t>(kMaxDim, static_cast<std::int64_t>(std::ceil((bounds.sizes()[k] + 2 * (reach + h)) * inv_)) + 1);
@@ -253,8 +254,8 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
       std::sort(seen.begin(), seen.end());
       const auto spheres = static_cast<std::uint32_t>(std::unique(seen.begin(), seen.end()) - seen.begin());
       Entry& e = part[header];
-      e = Entry{static_cast<std::uint32_t>(at - header - 1), 0.0f, {0, 0, 0}, 0};
-      std::memcpy(&e.centreDistance, &spheres, sizeof spheres);
+      e = Entry{static_cast<std::uint32_t>(at - header - 1), 0, {0, 0, 0}};
+      std::memcpy(reinterpret_cast<unsigned char*>(&e) + 4, &spheres, sizeof spheres);
     };
     merged([&](const Candidate& c) {
       if (c.key != last) {
@@ -265,7 +266,10 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
         keys.push_back(c.key);
         last = c.key;
       }
-      part[at++] = Entry{c.triangle, c.distance, {c.direction[0], c.direction[1], c.direction[2]}, 0};
+      // The distance in 8 bits, rounded down (q * unit <= d, exactly as the query computes it).
+      double q = std::min(255.0, std::floor(static_cast<double>(c.distance) / distanceUnit_));
+      while (q > 0.0 && q * distanceUnit_ > static_cast<double>(c.distance)) q -= 1.0;
+      part[at++] = Entry{c.triangle, static_cast<std::uint8_t>(q), {c.direction[0], c.direction[1], c.direction[2]}};
       seen.push_back(sphereOf[c.triangle]);
     });
     close();

@@ -241,11 +241,12 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
     testGridTriangle(static_cast<std::uint32_t>(cache->lastTriangle), p, mode, best);
   const double offset = rel.norm() + pad_;
   const double slack = grid_.slack();
+  const double unit = grid_.distanceUnit();
   // The stored directions are scaled by 127; scaling rel instead saves a multiplication per entry.
   const double rx = rel.x() * (1.0 / 127.0), ry = rel.y() * (1.0 / 127.0), rz = rel.z() * (1.0 / 127.0);
   const CellGrid::Entry* e = cell.entries;
   for (std::uint32_t i = 0; i < cell.count; ++i) {
-    const double dc = e[i].centreDistance;
+    const double dc = e[i].distance * unit;
     // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
     if (dc - offset > best.reach) break;
     // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.

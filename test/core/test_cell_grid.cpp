@@ -69,13 +69,13 @@ std::size_t checkGrid(const TriangleMesh& mesh, const CellGrid& grid, const std:
       }
       listed[t] = 1;
       if (i > 0) {
-        EXPECT_LE(e[i - 1].centreDistance, e[i].centreDistance) << "entries sorted";
+        EXPECT_LE(e[i - 1].distance, e[i].distance) << "entries sorted";
       }
       const double dc = distanceToTriangle(mesh, t, centre);
-      EXPECT_LE(double(e[i].centreDistance), dc) << "centre distance rounded down, triangle " << t;
-      EXPECT_GE(double(e[i].centreDistance), dc - 1e-6 * h - 1e-12) << "triangle " << t;
+      EXPECT_LE(grid.centreDistance(e[i]), dc) << "centre distance rounded down, triangle " << t;
+      EXPECT_GE(grid.centreDistance(e[i]), dc - grid.distanceUnit() - 1e-6 * h - 1e-12) << "triangle " << t;
       // The bound used to skip a triangle for this p.
-      const double bound = double(e[i].centreDistance) + rel.x() * e[i].dir(0) + rel.y() * e[i].dir(1) +
+      const double bound = grid.centreDistance(e[i]) + rel.x() * e[i].dir(0) + rel.y() * e[i].dir(1) +
                            rel.z() * e[i].dir(2) - grid.slack();
       const double truth = distanceToTriangle(mesh, t, p);
       if (bound > truth) {
@@ -167,7 +167,7 @@ TEST(CellGrid, DenseAndHashedIndexAgree) {
       EXPECT_EQ(ca.spheres, cb.spheres);
       for (std::uint32_t i = 0; i < ca.count; ++i) {
         EXPECT_EQ(ca.entries[i].triangle, cb.entries[i].triangle);
-        EXPECT_EQ(ca.entries[i].centreDistance, cb.entries[i].centreDistance);
+        EXPECT_EQ(ca.entries[i].distance, cb.entries[i].distance);
       }
     }
     EXPECT_GT(found, 1000u);

@@ -21,7 +21,7 @@ namespace clod_haptics {
  * query stops at the first candidate whose lower bound (distance to the centre minus the pointer's
  * offset from the centre) exceeds the best distance so far. Immutable after construction.
  *
- * Layout, for a query bound by memory latency: one array of 12-byte entries where each non-empty cell
+ * Layout, for a query bound by memory latency: one array of 8-byte entries where each non-empty cell
  * is a header (its candidate and sphere counts) followed by its candidates, so a query touches one
  * run of consecutive cache lines. Cells are found through a dense index (one bit per cell of the box
  * plus a rank per 64 cells, then the run's start: small enough to stay in cache, and an empty cell is
@@ -36,10 +36,14 @@ namespace clod_haptics {
  */
 class CellGrid {
  public:
-  /** \brief One candidate of a cell (12 bytes). */
+  /** \brief One candidate of a cell (8 bytes). */
   struct Entry {
     std::uint32_t triangle;
-    float centreDistance;  ///< distance dc from the cell centre to the triangle, rounded down
+    /**
+     * Distance dc from the cell centre to the triangle in units of distanceUnit() (reach / 255),
+     * rounded down: a lower bound, in the order of the true distances.
+     */
+    std::uint8_t distance;
     /**
      * Unit direction u from the triangle's closest point q to the cell centre, times 127, rounded to
      * nearest (zero when the centre is on the triangle). The triangle lies in the half-space
@@ -47,7 +51,6 @@ class CellGrid {
      * u (at most sqrt(3) / 254) is covered by slack().
      */
     std::int8_t direction[3];
-    std::uint8_t unused;
     /** \brief Component k of the direction as stored (divided by 127). */
     float dir(int k) const { return static_cast<float>(direction[k]) * (1.0f / 127.0f); }
   };
@@ -64,19 +67,23 @@ class CellGrid {
   /**
    * \brief Builds the grid for pointers of radius up to radius (> 0). Cell side is 2 radius, grown
    * when the grid would exceed 2^21 cells per axis or its memory budget: entriesPerTriangle
-   * candidates per triangle on average (12 bytes each), so memory stays linear in the mesh.
+   * candidates per triangle on average (8 bytes each), so memory stays linear in the mesh.
    * \param index Auto: dense when its bit index takes at most max(4 MiB, 16 bytes per triangle),
    * hashed otherwise; Dense or Hashed force one (Dense falls back to Hashed beyond 2^34 cells).
    * \param sliceCandidates the build collects candidates in slices of z of about this many (the peak
    * memory of the build is the entries plus one slice's 24-byte candidates); the grid is the same.
    */
   CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle = 24.0,
-           Index index = Index::Auto, double sliceCandidates = 2e6);
+           Index index = Index::Auto, double sliceCandidates = 1e6);
 
   /** \brief The largest pointer radius the grid answers for; larger pointers need another descent. */
   double radius() const { return radius_; }
   /** \brief Slack to subtract from an Entry's bound for the rounding of its float and 8-bit fields. */
   double slack() const { return slack_; }
+  /** \brief Unit of Entry::distance. */
+  double distanceUnit() const { return distanceUnit_; }
+  /** \brief An entry's distance from the cell centre (a lower bound of the true one). */
+  double centreDistance(const Entry& e) const { return e.distance * distanceUnit_; }
   /** \brief Side of a cell. */
   double cellSize() const { return cell_; }
   /** \brief Whether the grid was built. */
@@ -126,7 +133,7 @@ class CellGrid {
                                                                           offsetof(Slot, ref))->header
                                           : headers_[static_cast<std::size_t>(&ref - refs_.data())]);
     std::uint32_t spheres;
-    std::memcpy(&spheres, &header->centreDistance, sizeof spheres);
+    std::memcpy(&spheres, reinterpret_cast<const unsigned char*>(header) + 4, sizeof spheres);
     return Cell{header + 1, header->triangle, spheres};
   }
   /**
@@ -168,11 +175,12 @@ class CellGrid {
   double inv_ = 0.0;
   double slack_ = 0.0;
   double unit_ = 0.0;     // slab units: cell / 8192
+  double distanceUnit_ = 0.0;
   double slabPad_ = 0.0;  // rounding of the slab test
   Vec3 origin_ = Vec3::Zero();
   std::int64_t dims_[3] = {0, 0, 0};
   std::size_t cellCount_ = 0;
-  std::vector<Entry> entries_;       // per cell: a header (triangle = count, centreDistance = spheres' bits), then candidates
+  std::vector<Entry> entries_;  // per cell: a header (triangle = count, the next 4 bytes = spheres), then candidates
   std::vector<Word> words_;          // dense index
   std::vector<CellRef> refs_;         // dense index: proofs of the k-th non-empty cell (read by every query)
   std::vector<std::uint32_t> headers_;  // dense index: its header in the entries (read on contact only)
