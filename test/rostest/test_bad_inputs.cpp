@@ -84,7 +84,7 @@ class Rig {
 
   template <class Pred>
   static bool waitFor(Pred pred, double seconds) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(seconds));
     while (ros::ok() && ros::WallTime::now() < end) {
       if (pred()) return true;
       ros::WallDuration(0.005).sleep();
@@ -365,7 +365,7 @@ TEST(BadInputs, ReconfigureOutOfRangeIsClampedOrRefusedAndPosesStayCorrect) {
     EXPECT_EQ(r.status().requested_distance, before.requested_distance);
     EXPECT_GT(r.expectValidPosesAnsweredCorrectly(kRadius, kStiffness, std::string(name) + " = NaN"), 0u);
   }
-  ros::WallDuration(0.5).sleep();  // no level change follows a refused distance
+  ros::WallDuration(clod_haptics_test::scaled(0.5)).sleep();  // no level change follows a refused distance
   EXPECT_TRUE(std::isfinite(r.status().clustering_distance));
 
   // Out of range: clamped to cfg/Detector.cfg's bounds, and the answers follow the clamped value.
@@ -410,7 +410,7 @@ TEST(BadInputs, ReconfigureOutOfRangeIsClampedOrRefusedAndPosesStayCorrect) {
 
 TEST(BadInputs, ServiceRefusesBadDistancesAndKeepsServing) {
   Rig& r = rig();
-  ASSERT_TRUE(ros::service::waitForService(kService, ros::Duration(60.0)));
+  ASSERT_TRUE(ros::service::waitForService(kService, ros::Duration(clod_haptics_test::scaled(60.0))));
   for (double d : {-1.0, -1e-12, kNaN, kInf, -kInf, 1e300}) {
     GetSphereSet srv;
     srv.request.distance = d;
@@ -445,9 +445,7 @@ TEST(BadInputs, ServiceRefusesBadDistancesAndKeepsServing) {
 // Broken mesh files: the node (or nodelet) exits non-zero with an ERROR naming the file, never hangs.
 
 using clod_haptics_test::Outcome;
-Outcome run(const std::string& command, const std::string& limit = "60") {
-  return clod_haptics_test::run(command, limit);
-}
+Outcome run(const std::string& command, double limit = 60.0) { return clod_haptics_test::run(command, limit); }
 
 void expectCleanFailure(const Outcome& o, const std::string& file) {
   EXPECT_NE(o.exitCode, 0) << o.output;
@@ -479,7 +477,8 @@ TEST(BadInputs, TruncatedMeshFilesMakeTheDetectorNodeExitWithAClearError) {
 
 TEST(BadInputs, TruncatedMeshFileMakesTheStandaloneNodeletExitWithAClearError) {
   const std::string file = kBrokenFiles[0];
-  expectCleanFailure(run("rosrun nodelet nodelet standalone clod_haptics/Detector __name:=nodelet_broken _mesh:=" +
+  expectCleanFailure(run("rosrun " + clod_haptics_test::nodeletRosrunPrefix() +
+                         "nodelet nodelet standalone clod_haptics/Detector __name:=nodelet_broken _mesh:=" +
                          std::string(CLOD_TEST_DATA_DIR) + "/" + file),
                      file);
   // The running nodes did not notice.

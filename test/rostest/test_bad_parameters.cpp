@@ -53,7 +53,7 @@ TEST(BadParameters, SphereBuilderWithAGoodMeshKeepsRunning) {
   // The control: the same binary with a good mesh is still running when the time limit ends it.
   const Outcome o = run(
       std::string(CLOD_SPHERE_BUILDER_PATH) + " __name:=sb_good _mesh:=package://clod_haptics/data/meshes/torus.obj",
-      "-s INT 8");
+      8.0, "INT");
   EXPECT_TRUE(o.exitCode == 124 || o.exitCode == 0) << o.exitCode << ": " << o.output;
   EXPECT_NE(o.output.find("serving"), std::string::npos) << o.output;
 }

@@ -25,6 +25,7 @@
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/ros/mesh_resource.h"
+#include "test_timing.h"
 
 namespace clod_haptics {
 namespace {
@@ -74,7 +75,7 @@ class DetectorClient {
 
   /** Waits for the first level and the connections. */
   bool waitReady(double seconds = 60.0) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(seconds));
     while (ros::ok() && ros::WallTime::now() < end) {
       if (status().level_spheres > 0 && posePub_.getNumSubscribers() > 0 && contactSub_.getNumPublishers() > 0 &&
           forceSub_.getNumPublishers() > 0)
@@ -99,7 +100,7 @@ class DetectorClient {
 
   /** Waits for the contact and the force of a stamp. */
   bool waitAnswer(const ros::Time& stamp, Contact& contact, geometry_msgs::WrenchStamped& force, double seconds = 5.0) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(seconds));
     while (ros::ok() && ros::WallTime::now() < end) {
       {
         std::lock_guard<std::mutex> lock(mutex_);
@@ -131,7 +132,7 @@ class DetectorClient {
   /** Waits until pred(status) holds. */
   template <class Pred>
   bool waitStatus(Pred pred, double seconds = 10.0) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(seconds));
     while (ros::ok() && ros::WallTime::now() < end) {
       if (pred(status())) return true;
       ros::WallDuration(0.01).sleep();

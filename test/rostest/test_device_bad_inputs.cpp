@@ -69,7 +69,7 @@ TEST(DeviceBadInputs, BagReplayWithAGoodBagPlaysOnceAndExitsZero) {
   // The control: the bundled bag, ten times faster, no waiting: every pose published, exit 0.
   const Outcome o = run(kReplay + " __name:=br_good _bag:=" + kGoodBag +
                             " _rate_scale:=10.0 _start_delay:=0.0 _exit_delay:=0.0 _wait_for_subscribers:=0",
-                        "60");
+                        60.0);
   EXPECT_EQ(o.exitCode, 0) << o.output;
   EXPECT_NE(o.output.find("published 7501 poses"), std::string::npos) << o.output;
 }
@@ -79,7 +79,7 @@ TEST(DeviceBadInputs, BagReplayLoopsUntilInterrupted) {
   const Outcome o =
       run(kReplay + " __name:=br_loop _bag:=" + kGoodBag +
               " _loop:=true _rate_scale:=20.0 _start_delay:=0.0 _exit_delay:=0.0 _wait_for_subscribers:=0",
-          "-s INT 3");
+          3.0, "INT");
   const auto at = o.output.find("bag_replay: published ");
   ASSERT_NE(at, std::string::npos) << o.output;
   unsigned long long poses = 0, passes = 0;

@@ -17,6 +17,7 @@
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/device/bag_source.h"
 #include "clod_haptics/ros/mesh_resource.h"
+#include "test_timing.h"
 
 namespace clod_haptics {
 namespace {
@@ -72,7 +73,7 @@ TEST(DeviceBagReplay, EveryReplayedPoseIsAnsweredAndMatchesBruteForce) {
   ros::Subscriber doneSub = nh.subscribe("/bag_replay/done", 1, &ReplayObserver::onDone, &observer);
   // Subscribe to the poses only once the contact connection stands: bag_replay waits for two
   // pose subscribers (the detector and this test) before it starts, so nothing is missed.
-  const ros::WallTime connectDeadline = ros::WallTime::now() + ros::WallDuration(60.0);
+  const ros::WallTime connectDeadline = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(60.0));
   while (ros::ok() && contactSub.getNumPublishers() == 0 && ros::WallTime::now() < connectDeadline) {
     ros::WallDuration(0.01).sleep();
   }
@@ -80,7 +81,7 @@ TEST(DeviceBagReplay, EveryReplayedPoseIsAnsweredAndMatchesBruteForce) {
   ros::Subscriber poseSub = nh.subscribe("/phantom/pose", 100000, &ReplayObserver::onPose, &observer);
 
   // The replay takes the recording's duration divided by its rate scale: wait for its end.
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(240.0);
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(240.0));
   while (ros::ok() && ros::WallTime::now() < deadline) {
     {
       std::lock_guard<std::mutex> lock(observer.mutex_);

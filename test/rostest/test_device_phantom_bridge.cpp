@@ -17,6 +17,8 @@
 #include <mutex>
 #include <vector>
 
+#include "test_timing.h"
+
 namespace {
 
 using Eigen::Vector3d;
@@ -44,7 +46,7 @@ class BridgeClient {
   }
 
   bool waitConnected(double seconds = 60.0) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(seconds));
     while (ros::ok() && ros::WallTime::now() < end) {
       if (forcePub_.getNumSubscribers() > 0 && renderedSub_.getNumPublishers() > 0 && rendered().size() > 10)
         return true;
@@ -66,7 +68,7 @@ class BridgeClient {
   /** Sends f at about 200 Hz until pred(latest rendered force) holds or the deadline passes. */
   template <class Pred>
   bool sendUntil(const Vector3d& f, Pred pred, double seconds = 10.0) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(seconds));
     while (ros::ok() && ros::WallTime::now() < end) {
       sendForce(f);
       ros::WallDuration(0.005).sleep();
@@ -193,7 +195,8 @@ TEST(PhantomBridge, StaleForceGivesZero) {
   ASSERT_TRUE(client->sendUntil(ok, [&](const Vector3d& f) { return (f - ok).norm() < 1e-9; }));
   // Stop commanding: after force_timeout the bridge must render zero, and keep rendering zero.
   const ros::WallTime stop = ros::WallTime::now();
-  while (ros::ok() && client->latest().norm() > 0.0 && ros::WallTime::now() - stop < ros::WallDuration(10.0)) {
+  while (ros::ok() && client->latest().norm() > 0.0 &&
+         ros::WallTime::now() - stop < ros::WallDuration(clod_haptics_test::scaled(10.0))) {
     ros::WallDuration(0.001).sleep();
   }
   ASSERT_EQ(client->latest(), Vector3d::Zero()) << "the force did not go to zero once commands stopped";

@@ -2,29 +2,28 @@
 // every object's contact checked against bruteForceQuery on that object's mesh placed where the test
 // knows it is (static offsets, a static tf2 frame, and a frame the test itself moves between poses).
 
-#include <gtest/gtest.h>
-#include <sys/wait.h>
-
-#include <array>
-#include <atomic>
-#include <cstdio>
-#include <chrono>
-#include <cmath>
-#include <condition_variable>
-#include <map>
-#include <memory>
-#include <mutex>
-#include <thread>
-#include <vector>
-
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/WrenchStamped.h>
+#include <gtest/gtest.h>
 #include <ros/ros.h>
+#include <sys/wait.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 #include <visualization_msgs/MarkerArray.h>
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
 
 #include "clod_haptics/ContactArray.h"
 #include "clod_haptics/core/brute_force.h"
@@ -32,6 +31,7 @@
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/ros/mesh_resource.h"
 #include "clod_haptics/ros/scene_config.h"
+#include "test_timing.h"
 
 namespace {
 
@@ -89,7 +89,8 @@ class SceneDetectorTest : public ::testing::Test {
     staticBroadcaster_.sendTransform(table);
     setToolPose(makePose(Vec3(-0.3, 0.0, 0.1), 0.0));
     broadcaster_ = std::thread([this] { broadcastTool(); });
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    const auto deadline =
+        std::chrono::steady_clock::now() + std::chrono::duration<double>(clod_haptics_test::scaled(60.0));
     while ((posePub_.getNumSubscribers() == 0 || contactsSub_.getNumPublishers() == 0) &&
            std::chrono::steady_clock::now() < deadline) {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -139,7 +140,8 @@ class SceneDetectorTest : public ::testing::Test {
       std::lock_guard<std::mutex> lock(mutex_);
       return tool_ * o.offset;
     }
-    const auto tf = tfBuffer_.lookupTransform(config_.frameId, o.frameId, ros::Time(0), ros::Duration(10.0));
+    const auto tf = tfBuffer_.lookupTransform(config_.frameId, o.frameId, ros::Time(0),
+                                              ros::Duration(clod_haptics_test::scaled(10.0)));
     return toIsometry(tf.transform) * o.offset;
   }
 
@@ -166,7 +168,7 @@ class SceneDetectorTest : public ::testing::Test {
     posePub_.publish(pose);
     const std::uint64_t key = pose.header.stamp.toNSec();
     std::unique_lock<std::mutex> lock(mutex_);
-    cv_.wait_for(lock, std::chrono::duration<double>(timeout),
+    cv_.wait_for(lock, std::chrono::duration<double>(clod_haptics_test::scaled(timeout)),
                  [&] { return replies_.count(key) > 0 && forces_.count(key) > 0; });
     auto it = replies_.find(key);
     if (it == replies_.end()) return nullptr;
@@ -260,7 +262,8 @@ class SceneDetectorTest : public ::testing::Test {
 };
 
 TEST_F(SceneDetectorTest, EveryObjectMatchesBruteForce) {
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the tool frame reaches the detector
+  std::this_thread::sleep_for(
+      std::chrono::duration<double>(clod_haptics_test::scaled(0.5)));  // the tool frame reaches the detector
   const auto poses = currentPoses();
   std::vector<std::size_t> touchedPerObject(meshes_.size(), 0);
   for (std::size_t i = 0; i < meshes_.size(); ++i) {
@@ -311,7 +314,8 @@ TEST_F(SceneDetectorTest, PoseInAnotherFrameAndBadPoses) {
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   // A pose given in the table frame: the detector transforms it into the scene frame.
   const auto table = toIsometry(
-      tfBuffer_.lookupTransform("world", "table", ros::Time(0), ros::Duration(10.0)).transform);
+      tfBuffer_.lookupTransform("world", "table", ros::Time(0), ros::Duration(clod_haptics_test::scaled(10.0)))
+          .transform);
   const auto poses = currentPoses();
   std::size_t touched = 0;
   for (const Vec3& world : probesNear(2, 30, 5)) {
@@ -331,7 +335,8 @@ TEST_F(SceneDetectorTest, PoseInAnotherFrameAndBadPoses) {
 TEST_F(SceneDetectorTest, LevelsReplaceBruteForceOnceReady) {
   // Levels arrive from the cache or a build; afterwards no object is answered by brute force.
   const Vec3 p = worldFromObject(0) * meshes_[0]->vertices[0];
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::duration<double>(clod_haptics_test::scaled(120.0));
   ContactArrayConstPtr answer;
   do {
     answer = ask(p);
@@ -362,7 +367,8 @@ TEST_F(SceneDetectorTest, MarkersOnceForMeshesAndOnlyOnChange) {
       for (const auto& marker : arrays[k]->markers) n += marker.ns == ns && (type < 0 || marker.type == type);
     return n;
   };
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::duration<double>(clod_haptics_test::scaled(10.0));
   while (count("scene_mesh", -1) < meshes_.size() && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   // Every mesh once, by reference (a few bytes whatever its size), in its own frame.
@@ -377,7 +383,7 @@ TEST_F(SceneDetectorTest, MarkersOnceForMeshesAndOnlyOnChange) {
   // A contact shows up as a contact marker with the object's index as id.
   const Vec3 p = worldFromObject(0) * meshes_[0]->vertices[0];
   ASSERT_TRUE(ask(p));
-  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+  std::this_thread::sleep_for(std::chrono::duration<double>(clod_haptics_test::scaled(0.4)));
   bool contactShown = false;
   {
     std::lock_guard<std::mutex> lock(m);
@@ -400,7 +406,10 @@ TEST_F(SceneDetectorTest, MarkersOnceForMeshesAndOnlyOnChange) {
 
 /** Runs the scene_detector binary with a time limit; returns its exit code and output. */
 std::pair<int, std::string> runSceneDetector(const std::string& name) {
-  FILE* pipe = popen(("timeout 60 " + std::string(CLOD_SCENE_DETECTOR_PATH) + " __name:=" + name + " 2>&1").c_str(), "r");
+  FILE* pipe = popen(("timeout " + std::to_string(clod_haptics_test::scaled(60.0)) + " " +
+                      std::string(CLOD_SCENE_DETECTOR_PATH) + " __name:=" + name + " 2>&1")
+                         .c_str(),
+                     "r");
   if (!pipe) return {-1, ""};
   std::string output;
   std::array<char, 512> buffer;

@@ -16,6 +16,7 @@
 #include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/ros/conversions.h"
 #include "clod_haptics/ros/mesh_resource.h"
+#include "test_timing.h"
 
 namespace clod_haptics {
 namespace {
@@ -41,7 +42,7 @@ bool call(double d, GetSphereSet& srv) {
 }
 
 TEST(SphereBuilder, RoundTripMatchesTheCoreCountAndShrinksWithDistance) {
-  ASSERT_TRUE(ros::service::waitForService(kService, ros::Duration(60.0)));
+  ASSERT_TRUE(ros::service::waitForService(kService, ros::Duration(clod_haptics_test::scaled(60.0))));
   std::vector<double> distances;
   ros::NodeHandle("~").getParam("distances", distances);
   ASSERT_EQ(distances.size(), 3u);
@@ -69,7 +70,7 @@ TEST(SphereBuilder, RoundTripMatchesTheCoreCountAndShrinksWithDistance) {
 }
 
 TEST(SphereBuilder, BadRequestsAreRefusedAndTheNodeKeepsServing) {
-  ASSERT_TRUE(ros::service::waitForService(kService, ros::Duration(60.0)));
+  ASSERT_TRUE(ros::service::waitForService(kService, ros::Duration(clod_haptics_test::scaled(60.0))));
   for (double bad :
        {-0.01, -1e-12, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
     GetSphereSet srv;
@@ -85,7 +86,7 @@ TEST(SphereBuilder, BadRequestsAreRefusedAndTheNodeKeepsServing) {
 }
 
 TEST(SphereBuilder, ConcurrentRequestsForANewLevelShareOneBuild) {
-  ASSERT_TRUE(ros::service::waitForService(kService, ros::Duration(60.0)));
+  ASSERT_TRUE(ros::service::waitForService(kService, ros::Duration(clod_haptics_test::scaled(60.0))));
   const double d = 0.0123;  // asked by no other test
   constexpr int kClients = 6;
   std::vector<GetSphereSet> answers(kClients);
@@ -119,7 +120,7 @@ TEST(SphereBuilder, DefaultLevelIsPublishedLatched) {
   ros::NodeHandle nh;
   SphereSetConstPtr latched;
   auto sub = nh.subscribe<SphereSet>("/sphere_builder/sphere_set", 1, [&](const SphereSetConstPtr& m) { latched = m; });
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(30.0);
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(30.0));
   while (!latched && ros::WallTime::now() < end) ros::WallDuration(0.01).sleep();
   ASSERT_TRUE(latched) << "nothing latched on /sphere_builder/sphere_set";
   EXPECT_DOUBLE_EQ(latched->distance, d);
