@@ -28,7 +28,7 @@ using namespace clod_haptics;
 using Clock = std::chrono::steady_clock;
 
 const char* kUsage =
-    "usage (every command also takes --clustering single-link|cube, default single-link):\n"
+    "usage (every command also takes --clustering single-link|cube|tight, default single-link):\n"
     "  clod_tool build --mesh M [--scale S | --normalize] --distance D --out SPHERES.yaml [--json]\n"
     "  clod_tool query --mesh M [--scale S | --normalize] --distance D --radius R --mode exact|paper|spheres\n"
     "                  --probes P.csv --out RESULT.csv [--fast grid|hierarchy|flat] [--json]\n"
@@ -136,7 +136,7 @@ Loaded loadAndPlace(const Args& args) {
   start = Clock::now();
   const std::string clustering = args.get("--clustering", "single-link");
   auto strategy = makeClustering(clustering);
-  if (!strategy) throw UsageError("--clustering must be single-link or cube, got '" + clustering + "'");
+  if (!strategy) throw UsageError("--clustering must be single-link, cube or tight, got '" + clustering + "'");
   l.builder =
       std::make_unique<ClodBuilder>(l.mesh, std::make_shared<PaperPlacement>(0, progressPrinter(start)), strategy);
   l.placementMs = msSince(start);
