@@ -70,29 +70,38 @@ ClodSphereSet ClodBuilder::build(double d) const {
     for (std::uint32_t c = 0; c < k; ++c) set.centres[c] /= static_cast<double>(members[c]);
   }
 
-  // Triangle lists, grouped by cluster (counting sort), then sorted and made unique per cluster.
-  for (std::size_t i = 0; i < centres_.size(); ++i) ++set.offsets[labels[i] + 1];
-  for (std::uint32_t c = 0; c < k; ++c) set.offsets[c + 1] += set.offsets[c];
-  std::vector<std::uint32_t> fill(set.offsets.begin(), set.offsets.end() - 1);
-  std::vector<std::uint32_t> lists(centres_.size());
-  for (std::size_t i = 0; i < centres_.size(); ++i) lists[fill[labels[i]]++] = wrapped_[i];
-  set.triangles.reserve(lists.size());
-  std::vector<std::uint32_t> offsets(k + 1, 0);
-  // Duplicates within a cluster are dropped with a stamp per triangle (the last cluster that took
-  // it), O(n) in all; each list is then sorted, which is cheap on the short lists most clusters have.
-  std::vector<std::uint32_t> stamp(mesh.size(), std::numeric_limits<std::uint32_t>::max());
-  for (std::uint32_t c = 0; c < k; ++c) {
-    const std::size_t start = set.triangles.size();
-    for (std::uint32_t i = set.offsets[c]; i < set.offsets[c + 1]; ++i) {
-      const std::uint32_t t = lists[i];
-      if (stamp[t] == c) continue;
-      stamp[t] = c;
-      set.triangles.push_back(t);
-    }
-    std::sort(set.triangles.begin() + static_cast<std::ptrdiff_t>(start), set.triangles.end());
-    offsets[c + 1] = static_cast<std::uint32_t>(set.triangles.size());
+  // Triangle lists, ascending and unique per cluster, in O(n) without sorting: the points are visited in
+  // ascending order of the triangle they wrap (a counting sort over the triangles), so appending each
+  // to its cluster keeps every list ascending, and a duplicate is always the list's last entry. One
+  // pass counts, one fills the exactly sized array.
+  const std::size_t points = centres_.size();
+  std::vector<std::uint32_t> byTriangle(points);
+  {
+    std::vector<std::uint32_t> next(mesh.size() + 1, 0);
+    for (std::size_t i = 0; i < points; ++i) ++next[wrapped_[i] + 1];
+    for (std::size_t t = 0; t < mesh.size(); ++t) next[t + 1] += next[t];
+    for (std::size_t i = 0; i < points; ++i) byTriangle[next[wrapped_[i]]++] = static_cast<std::uint32_t>(i);
   }
-  set.offsets = std::move(offsets);
+  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> last(k, kNone);  // the last triangle appended to each cluster
+  for (const std::uint32_t i : byTriangle) {
+    const std::uint32_t c = labels[i], t = wrapped_[i];
+    if (last[c] == t) continue;
+    last[c] = t;
+    ++set.offsets[c + 1];
+  }
+  for (std::uint32_t c = 0; c < k; ++c) set.offsets[c + 1] += set.offsets[c];
+  set.triangles.resize(set.offsets[k]);
+  {
+    std::vector<std::uint32_t> fill(set.offsets.begin(), set.offsets.end() - 1);
+    std::fill(last.begin(), last.end(), kNone);
+    for (const std::uint32_t i : byTriangle) {
+      const std::uint32_t c = labels[i], t = wrapped_[i];
+      if (last[c] == t) continue;
+      last[c] = t;
+      set.triangles[fill[c]++] = t;
+    }
+  }
 
   // Radius: reach every vertex of every wrapped triangle (the coverage invariant).
   for (std::uint32_t c = 0; c < k; ++c) {
