@@ -1,9 +1,11 @@
 #include "clod_haptics/core/tight_clustering.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <string>
+#include <thread>
 
 #include <Eigen/Eigenvalues>
 
@@ -292,15 +294,15 @@ std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::
     }
   };
 
-  std::vector<std::uint32_t> clusterOf(m, 0);
-  std::vector<Vec3> clusterCentre;
   struct Range {
     std::uint32_t begin, end;
   };
-  std::vector<Range> stack{{0, static_cast<std::uint32_t>(m)}};
-  while (!stack.empty()) {
-    const Range r = stack.back();
-    stack.pop_back();
+  struct Leaf {
+    Range range;
+    Vec3 centre;
+  };
+  // Whether a node becomes a sphere, and its centre.
+  auto evaluate = [&](const Range r, Vec3& best) {
     const double size = static_cast<double>(r.end - r.begin);
     Vec3 meanCentroid = Vec3::Zero(), meanNormal = Vec3::Zero(), meanPoint = Vec3::Zero();
     double depth = 0.0, weights = 0.0;
@@ -340,7 +342,7 @@ std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::
     // Exact excess (one distance query) only for candidates whose bound could still pass and win;
     // the lowest bounds first, so that fewer are left to query (ties keep the candidates' order).
     std::stable_sort(cand, cand + count, [](const Candidate& x, const Candidate& y) { return x.lower < y.lower; });
-    Vec3 best = cand[0].centre;
+    best = cand[0].centre;
     double bestExcess = std::numeric_limits<double>::infinity();
     for (int j = 0; j < count; ++j) {
       if (cand[j].lower > threshold || cand[j].lower >= bestExcess) continue;
@@ -351,15 +353,63 @@ std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::
         best = cand[j].centre;
       }
     }
-    if (r.end - r.begin == 1 || bestExcess <= d3) {
-      for (std::uint32_t i = r.begin; i < r.end; ++i) clusterOf[items[i]] = static_cast<std::uint32_t>(clusterCentre.size());
-      clusterCentre.push_back(best);
+    return r.end - r.begin == 1 || bestExcess <= d3;
+  };
+  // Depth first below one node; items of disjoint nodes are disjoint ranges, so nodes run in parallel.
+  auto descend = [&](const Range root, std::vector<Leaf>& leaves) {
+    std::vector<Range> stack{root};
+    while (!stack.empty()) {
+      const Range r = stack.back();
+      stack.pop_back();
+      Vec3 centre;
+      if (evaluate(r, centre)) {
+        leaves.push_back({r, centre});
+        continue;
+      }
+      const std::uint32_t mid = splitAtMean(items, r.begin, r.end, centroid);
+      stack.push_back({mid, r.end});
+      stack.push_back({r.begin, mid});
+    }
+  };
+  // The top of the tree breadth first on this thread until there are a few nodes per thread, then those
+  // subtrees on all threads. The tree and the leaves do not depend on the threads (only their order,
+  // which the labelling below removes).
+  unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+  if (m < 4096) threads = 1;
+  std::vector<Leaf> top;
+  std::vector<Range> tasks{{0, static_cast<std::uint32_t>(m)}};
+  std::size_t next = 0;  // tasks before it were expanded here; the rest run below
+  while (threads > 1 && next < tasks.size() && tasks.size() - next < 4 * std::size_t(threads)) {
+    const Range r = tasks[next++];
+    Vec3 centre;
+    if (evaluate(r, centre)) {
+      top.push_back({r, centre});
       continue;
     }
     const std::uint32_t mid = splitAtMean(items, r.begin, r.end, centroid);
-    stack.push_back({mid, r.end});
-    stack.push_back({r.begin, mid});
+    tasks.push_back({r.begin, mid});
+    tasks.push_back({mid, r.end});
   }
+  std::vector<std::vector<Leaf>> below(tasks.size());
+  std::atomic<std::size_t> nextTask{next};
+  auto worker = [&]() {
+    for (std::size_t t; (t = nextTask.fetch_add(1)) < tasks.size();) descend(tasks[t], below[t]);
+  };
+  std::vector<std::thread> pool;
+  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(worker);
+  worker();
+  for (auto& th : pool) th.join();
+  std::vector<std::uint32_t> clusterOf(m, 0);
+  std::vector<Vec3> clusterCentre;
+  auto take = [&](const std::vector<Leaf>& leaves) {
+    for (const Leaf& leaf : leaves) {
+      for (std::uint32_t i = leaf.range.begin; i < leaf.range.end; ++i)
+        clusterOf[items[i]] = static_cast<std::uint32_t>(clusterCentre.size());
+      clusterCentre.push_back(leaf.centre);
+    }
+  };
+  take(top);
+  for (const auto& leaves : below) take(leaves);
   std::vector<std::uint32_t> order;
   const std::uint32_t count =
       labelPoints(clusterOf, itemOfPoint, static_cast<std::uint32_t>(clusterCentre.size()), labels, &order);
