@@ -12,6 +12,9 @@ namespace {
 // Surface area heuristic over kBins bins of the centroids along one axis: the split that minimises
 // area(left) * count(left) + area(right) * count(right), the expected cost of a ray through the node.
 constexpr int kBins = 16;
+// Deeper than this the median split is used, which halves every range: the depth stays below
+// kMaxSahDepth + 32, within the traversal's stack (one pending entry per level).
+constexpr int kMaxSahDepth = 64;
 
 // The next float below / above f (f not NaN), by its bit pattern: nextafterf is a library call, and
 // this runs six times per triangle.
@@ -76,7 +79,7 @@ struct Build {
 
   // Partitions order[begin, end) and returns the split point; falls back to the median when the
   // centres coincide along the axis or the heuristic leaves one side empty.
-  std::uint32_t split(std::uint32_t begin, std::uint32_t end, const Box& cbox) const {
+  std::uint32_t split(std::uint32_t begin, std::uint32_t end, const Box& cbox, int depth) const {
     int axis = 0;
     for (int k = 1; k < 3; ++k)
       if (double(cbox.hi[k]) - cbox.lo[k] > double(cbox.hi[axis]) - cbox.lo[axis]) axis = k;
@@ -87,7 +90,7 @@ struct Build {
                        [&](const Prim& a, const Prim& b) { return a.centre[axis] < b.centre[axis]; });
       return mid;
     };
-    if (!(extent > 0.0) || !std::isfinite(extent) || end - begin < 16) return median();
+    if (!(extent > 0.0) || !std::isfinite(extent) || end - begin < 16 || depth >= kMaxSahDepth) return median();
     const double scale = kBins / extent;
     auto binOf = [&](const Prim& p) { return std::min(kBins - 1, static_cast<int>((p.centre[axis] - lo) * scale)); };
     Box bins[kBins];
@@ -135,16 +138,16 @@ struct Build {
 
   // Builds order[begin, end) into nodes (indices local to nodes, left child next to its parent) and
   // returns the node's index; bounds are filled bottom up from the leaves.
-  std::uint32_t build(std::vector<TriangleBvh::Node>& nodes, std::uint32_t begin, std::uint32_t end) const {
+  std::uint32_t build(std::vector<TriangleBvh::Node>& nodes, std::uint32_t begin, std::uint32_t end, int depth) const {
     const std::uint32_t self = static_cast<std::uint32_t>(nodes.size());
     nodes.emplace_back();
     if (end - begin <= static_cast<std::uint32_t>(leafSize)) {
       leaf(nodes[self], begin, end);
       return self;
     }
-    const std::uint32_t mid = split(begin, end, centreBox(begin, end));
-    const std::uint32_t left = build(nodes, begin, mid);
-    const std::uint32_t right = build(nodes, mid, end);
+    const std::uint32_t mid = split(begin, end, centreBox(begin, end), depth);
+    const std::uint32_t left = build(nodes, begin, mid, depth + 1);
+    const std::uint32_t right = build(nodes, mid, end, depth + 1);
     join(nodes[self], nodes[left], nodes[right], right);
     return self;
   }
@@ -194,18 +197,18 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
   // At most 2n - 1 nodes: reserving that never reallocates, and untouched capacity is never resident.
   nodes.reserve(2 * n);
   if (!parallel) {
-    b.build(nodes, 0, count);
+    b.build(nodes, 0, count, 0);
     return;
   }
   // The root's split here, its left subtree on this thread straight into nodes, its right subtree on
   // a second thread into its own array, appended with the right-child indices shifted: the same tree
   // as the serial build.
   nodes.emplace_back();
-  const std::uint32_t mid = b.split(0, count, b.centreBox(0, count));
+  const std::uint32_t mid = b.split(0, count, b.centreBox(0, count), 0);
   std::vector<Node> right;
   right.reserve(2 * (n - mid));
-  std::thread worker([&]() { b.build(right, mid, count); });
-  b.build(nodes, 0, mid);
+  std::thread worker([&]() { b.build(right, mid, count, 1); });
+  b.build(nodes, 0, mid, 1);
   worker.join();
   const std::uint32_t base = static_cast<std::uint32_t>(nodes.size());
   for (Node& node : right)

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <map>
@@ -91,6 +92,30 @@ TEST(TriangleBvh, OtherLeafSizes) {
     }
     EXPECT_GT(rays, 300u);
   }
+}
+
+TEST(TriangleBvh, FlatTrianglesOverAHugeRangeAreAllFound) {
+  // Triangles in the planes x = 1.15^i, up to ~1e24 (float bounds of flat boxes far from the origin),
+  // one triangle per leaf: a ray along x meets every one of them, built on one thread or two, and
+  // random rays find what brute force finds.
+  std::vector<Vec3> v;
+  std::vector<Triangle> t;
+  for (std::uint32_t i = 0; i < 400; ++i) {
+    const double x = std::pow(1.15, i);
+    v.emplace_back(x, -1, -1);
+    v.emplace_back(x, 2, -1);
+    v.emplace_back(x, -1, 2);
+    t.push_back({3 * i, 3 * i + 1, 3 * i + 2});
+  }
+  const TriangleMesh mesh = makeMesh(v, t, "chain");
+  for (unsigned threads : {1u, 2u}) {
+    const TriangleBvh bvh(mesh, 1, threads);
+    double tMax = std::numeric_limits<double>::infinity();
+    std::size_t hits = 0;
+    bvh.forEachRayHit(Vec3(0, 0.1, 0.2), Vec3(1, 0, 0), tMax, [&](std::uint32_t, double) { ++hits; });
+    EXPECT_EQ(hits, mesh.size());
+  }
+  checkRays(mesh, 300, 5);
 }
 
 TEST(TriangleBvh, ShrinkingTMaxPrunesFartherHits) {

@@ -100,7 +100,7 @@ void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMa
     std::uint32_t node;
     double t;
   };
-  Item stack[64];
+  Item stack[128];  // at most one pending entry per level, and the build keeps the depth under 96
   int top = 0;
   if (enter(nodes_[0]) < 1e308) stack[top++] = {0, 0.0};
   while (top > 0) {
