@@ -145,9 +145,10 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
 
   const double tiny = std::max(1e-9 * h, 4e-9 * magnitude);
   // Candidates of a range of triangles; two threads each fill their own list.
-  auto collect = [&](std::size_t begin, std::size_t end, std::int64_t zBegin, std::int64_t zEnd,
-                     std::vector<Candidate>& candidates) {
-    for (std::size_t t = begin; t < end; ++t) {
+  auto collect = [&](const std::uint32_t* begin, const std::uint32_t* end, std::int64_t zBegin, std::int64_t zEnd,
+                     detail::ReallocArray<Candidate>& candidates) {
+    for (const std::uint32_t* it = begin; it != end; ++it) {
+      const std::size_t t = *it;
       const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
       const Vec3& n = mesh.normals[t];
       const bool planar = !n.isZero(0.0);
@@ -199,32 +200,100 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
   const std::vector<std::uint32_t> sphereOf = firstSphereOfTriangles(set, mesh.size());
 
   // Candidates are collected in slices of z (keys sort by z first, so slices come in key order), each
-  // slice's two halves (two threads) sorted and merged straight into that slice's entries: the 24-byte
-  // candidates of one slice at a time, not of the whole grid, are held beside the 12-byte entries.
+  // slice's two halves (two threads) sorted and merged straight onto the end of the entries: only one
+  // slice's 24-byte candidates are held beside the 8-byte entries, and both arrays grow by realloc
+  // (pages moved, not copied). Slices hold about equal shares of the candidates, estimated per layer
+  // of cells from the triangles' boxes grown by reach.
   double expected = 0.0;
   {
     const double slab = (2.0 * reach * area) / (h * h * h);
     const double span = (edge + 2.0 * reach) / h;
     expected = std::max(slab, 0.6 * span * span * span * static_cast<double>(mesh.size()));
   }
-  const std::int64_t slices =
-      std::clamp<std::int64_t>(static_cast<std::int64_t>(expected / std::max(1.0, sliceCandidates)) + 1, 1, std::min<std::int64_t>(64, dims_[2]));
-  std::vector<std::vector<Entry>> parts;
+  const std::int64_t slices = std::clamp<std::int64_t>(
+      static_cast<std::int64_t>(expected / std::max(1.0, sliceCandidates)) + 1, 1, std::min<std::int64_t>(256, dims_[2]));
+  // The z range of cells each triangle's box (grown by reach) spans.
+  auto zRange = [&](std::size_t t, std::int64_t& l2, std::int64_t& u2, double& columns) {
+    const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
+    const Vec3 lo = a.cwiseMin(b).cwiseMin(c) - Vec3::Constant(reach);
+    const Vec3 hi = a.cwiseMax(b).cwiseMax(c) + Vec3::Constant(reach);
+    std::int64_t l[3], u[3];
+    for (int k = 0; k < 3; ++k) {
+      l[k] = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((lo[k] - origin_[k]) * inv_)), 0, dims_[k] - 1);
+      u[k] = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((hi[k] - origin_[k]) * inv_)), 0, dims_[k] - 1);
+    }
+    l2 = l[2];
+    u2 = u[2];
+    columns = static_cast<double>((u[0] - l[0] + 1) * (u[1] - l[1] + 1));
+  };
+  std::vector<std::int64_t> sliceStart{0};
+  if (slices > 1) {
+    std::vector<double> layer(static_cast<std::size_t>(dims_[2]) + 1, 0.0);
+    for (std::size_t t = 0; t < mesh.size(); ++t) {
+      std::int64_t l2, u2;
+      double w;
+      zRange(t, l2, u2, w);
+      layer[static_cast<std::size_t>(l2)] += w;
+      layer[static_cast<std::size_t>(u2) + 1] -= w;
+    }
+    double running = 0.0, sum = 0.0;
+    for (std::int64_t z = 0; z < dims_[2]; ++z) sum += (running += layer[static_cast<std::size_t>(z)]);
+    running = 0.0;
+    double cumulative = 0.0;
+    for (std::int64_t z = 0; z < dims_[2]; ++z) {
+      cumulative += (running += layer[static_cast<std::size_t>(z)]);
+      if (cumulative >= sum * static_cast<double>(sliceStart.size()) / static_cast<double>(slices) && z + 1 < dims_[2])
+        sliceStart.push_back(z + 1);
+    }
+  }
+  sliceStart.push_back(dims_[2]);
+  // Per slice, the triangles whose z range meets it (most triangles meet one slice).
+  const std::size_t sliceCount = sliceStart.size() - 1;
+  std::vector<std::uint32_t> sliceFirst(sliceCount + 1, 0), sliceTriangles;
+  {
+    auto slicesOf = [&](std::size_t t, std::size_t& sa, std::size_t& sb) {
+      std::int64_t l2, u2;
+      double w;
+      zRange(t, l2, u2, w);
+      sa = static_cast<std::size_t>(std::upper_bound(sliceStart.begin(), sliceStart.end(), l2) - sliceStart.begin()) - 1;
+      sb = static_cast<std::size_t>(std::upper_bound(sliceStart.begin(), sliceStart.end(), u2) - sliceStart.begin()) - 1;
+    };
+    std::size_t sa, sb;
+    if (sliceCount == 1) {
+      sliceTriangles.resize(mesh.size());
+      for (std::size_t t = 0; t < mesh.size(); ++t) sliceTriangles[t] = static_cast<std::uint32_t>(t);
+      sliceFirst[1] = static_cast<std::uint32_t>(mesh.size());
+    } else {
+      for (std::size_t t = 0; t < mesh.size(); ++t) {
+        slicesOf(t, sa, sb);
+        for (std::size_t q = sa; q <= sb; ++q) ++sliceFirst[q + 1];
+      }
+      for (std::size_t q = 0; q < sliceCount; ++q) sliceFirst[q + 1] += sliceFirst[q];
+      sliceTriangles.resize(sliceFirst[sliceCount]);
+      std::vector<std::uint32_t> fill(sliceFirst.begin(), sliceFirst.end() - 1);
+      for (std::size_t t = 0; t < mesh.size(); ++t) {
+        slicesOf(t, sa, sb);
+        for (std::size_t q = sa; q <= sb; ++q) sliceTriangles[fill[q]++] = static_cast<std::uint32_t>(t);
+      }
+    }
+  }
   std::vector<std::uint64_t> headers;  // per cell: its header's position in the entries
   std::vector<std::uint64_t> keys;
-  std::size_t cells = 0, stored = 0;
-  std::vector<Candidate> first, second;
+  std::size_t cells = 0;
+  detail::ReallocArray<Candidate> first, second;
   std::vector<std::uint32_t> seen;
-  for (std::int64_t slice = 0; slice < slices; ++slice) {
-    const std::int64_t zBegin = dims_[2] * slice / slices, zEnd = dims_[2] * (slice + 1) / slices;
+  for (std::size_t slice = 0; slice < sliceCount; ++slice) {
+    const std::int64_t zBegin = sliceStart[slice], zEnd = sliceStart[slice + 1];
+    if (zBegin >= zEnd) continue;
     first.clear();
     second.clear();
-    const std::size_t half = mesh.size() / 2;
+    const std::uint32_t* list = sliceTriangles.data() + sliceFirst[slice];
+    const std::size_t count = sliceFirst[slice + 1] - sliceFirst[slice], half = count / 2;
     std::thread helper([&] {
-      collect(half, mesh.size(), zBegin, zEnd, second);
+      collect(list + half, list + count, zBegin, zEnd, second);
       std::sort(second.begin(), second.end(), order);
     });
-    collect(0, half, zBegin, zEnd, first);
+    collect(list, list + half, zBegin, zEnd, first);
     std::sort(first.begin(), first.end(), order);
     helper.join();
     // Visits the candidates of both halves in merged order.
@@ -246,14 +315,14 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
       });
     }
     // Entries: per cell a header, then its candidates.
-    std::vector<Entry> part(first.size() + second.size() + sliceCells);
-    std::size_t at = 0, header = 0;
+    std::size_t at = entries_.size(), header = 0;
+    entries_.resize(at + first.size() + second.size() + sliceCells);
     std::uint64_t last = kOutside;
     auto close = [&]() {
       if (last == kOutside) return;
       std::sort(seen.begin(), seen.end());
       const auto spheres = static_cast<std::uint32_t>(std::unique(seen.begin(), seen.end()) - seen.begin());
-      Entry& e = part[header];
+      Entry& e = entries_[header];
       e = Entry{static_cast<std::uint32_t>(at - header - 1), 0, {0, 0, 0}};
       std::memcpy(reinterpret_cast<unsigned char*>(&e) + 4, &spheres, sizeof spheres);
     };
@@ -262,29 +331,24 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
         close();
         seen.clear();
         header = at++;
-        headers.push_back(stored + header);
+        headers.push_back(header);
         keys.push_back(c.key);
         last = c.key;
       }
       // The distance in 8 bits, rounded down (q * unit <= d, exactly as the query computes it).
       double q = std::min(255.0, std::floor(static_cast<double>(c.distance) / distanceUnit_));
       while (q > 0.0 && q * distanceUnit_ > static_cast<double>(c.distance)) q -= 1.0;
-      part[at++] = Entry{c.triangle, static_cast<std::uint8_t>(q), {c.direction[0], c.direction[1], c.direction[2]}};
+      entries_[at++] = Entry{c.triangle, static_cast<std::uint8_t>(q), {c.direction[0], c.direction[1], c.direction[2]}};
       seen.push_back(sphereOf[c.triangle]);
     });
     close();
     cells += sliceCells;
-    stored += part.size();
-    if (!part.empty()) parts.push_back(std::move(part));
   }
-  std::vector<Candidate>().swap(first);
-  std::vector<Candidate>().swap(second);
+  first = detail::ReallocArray<Candidate>();
+  second = detail::ReallocArray<Candidate>();
+  std::vector<std::uint32_t>().swap(sliceTriangles);
+  entries_.shrink();
   cellCount_ = cells;
-  entries_.reserve(stored);
-  for (std::vector<Entry>& part : parts) {
-    entries_.insert(entries_.end(), part.begin(), part.end());
-    std::vector<Entry>().swap(part);
-  }
 
   // Per cell, the index entry: the slab. A triangle point within radius R of a point of the cell is
   // within h / 2 + R of the centre along each axis and within 3 h / 2 + sqrt(3) R in the L1 norm (the

@@ -75,10 +75,6 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   vertices_ = m.vertices.data();
   normals_ = m.normals.data();
 
-  if (fastLevel_ == FastLevel::Grid) {
-    const double radius = gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * bounds.diagonal().norm();
-    if (radius > 0.0) grid_ = CellGrid(m, s, radius);
-  }
   if (fastLevel_ != FastLevel::Flat) {
     std::vector<Eigen::AlignedBox3d> boxes(s.size());
     for (std::size_t i = 0; i < s.size(); ++i)
@@ -115,6 +111,11 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
       }
       triangleRoot_[i] = root;
     }
+  }
+  // The grid last: its construction peak then meets only the trees kept, not their build's temporaries.
+  if (fastLevel_ == FastLevel::Grid) {
+    const double radius = gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * bounds.diagonal().norm();
+    if (radius > 0.0) grid_ = CellGrid(m, s, radius);
   }
 }
 

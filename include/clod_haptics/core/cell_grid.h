@@ -1,14 +1,97 @@
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
+#include <limits>
+#include <new>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "clod_haptics/core/mesh.h"
 #include "clod_haptics/core/sphere_set.h"
 
 namespace clod_haptics {
+
+namespace detail {
+
+/**
+ * \brief A malloc'd array of trivially copyable items that grows and shrinks with realloc: for large
+ * blocks glibc moves the pages (mremap) instead of copying, so growing or trimming never holds the old
+ * and the new block resident at once (std::vector's growth does, and cannot shrink in place).
+ */
+template <class T>
+class ReallocArray {
+  static_assert(std::is_trivially_copyable<T>::value, "ReallocArray holds trivially copyable items");
+
+ public:
+  ReallocArray() = default;
+  ReallocArray(const ReallocArray& o) {
+    reserve(o.size_);
+    if (o.size_ > 0) std::memcpy(data_, o.data_, o.size_ * sizeof(T));
+    size_ = o.size_;
+  }
+  ReallocArray(ReallocArray&& o) noexcept : data_(o.data_), size_(o.size_), capacity_(o.capacity_) {
+    o.data_ = nullptr;
+    o.size_ = o.capacity_ = 0;
+  }
+  ReallocArray& operator=(ReallocArray o) noexcept {
+    std::swap(data_, o.data_);
+    std::swap(size_, o.size_);
+    std::swap(capacity_, o.capacity_);
+    return *this;
+  }
+  ~ReallocArray() { std::free(data_); }
+
+  T* data() noexcept { return data_; }
+  const T* data() const noexcept { return data_; }
+  T* begin() noexcept { return data_; }
+  T* end() noexcept { return data_ + size_; }
+  T& operator[](std::size_t i) noexcept { return data_[i]; }
+  const T& operator[](std::size_t i) const noexcept { return data_[i]; }
+  std::size_t size() const noexcept { return size_; }
+  std::size_t capacity() const noexcept { return capacity_; }
+  bool empty() const noexcept { return size_ == 0; }
+  void clear() noexcept { size_ = 0; }
+  void reserve(std::size_t n) {
+    if (n > capacity_) resize_block(n);
+  }
+  /** \brief New items are uninitialised. */
+  void resize(std::size_t n) {
+    if (n > capacity_) resize_block(std::max(n, 2 * capacity_));
+    size_ = n;
+  }
+  void push_back(const T& v) {
+    if (size_ == capacity_) resize_block(std::max<std::size_t>(64, 2 * capacity_));
+    data_[size_++] = v;
+  }
+  /** \brief Releases the capacity beyond size(). */
+  void shrink() {
+    if (capacity_ > size_) resize_block(size_);
+  }
+
+ private:
+  void resize_block(std::size_t n) {
+    if (n == 0) {
+      std::free(data_);
+      data_ = nullptr;
+      capacity_ = 0;
+      return;
+    }
+    if (n > std::numeric_limits<std::size_t>::max() / sizeof(T)) throw std::bad_alloc();
+    void* p = std::realloc(data_, n * sizeof(T));
+    if (p == nullptr) throw std::bad_alloc();
+    data_ = static_cast<T*>(p);
+    capacity_ = n;
+  }
+  T* data_ = nullptr;
+  std::size_t size_ = 0, capacity_ = 0;
+};
+
+}  // namespace detail
 
 /**
  * \brief The fast level precomputed per cell of a uniform grid: for every pointer of radius up to
@@ -180,7 +263,7 @@ class CellGrid {
   Vec3 origin_ = Vec3::Zero();
   std::int64_t dims_[3] = {0, 0, 0};
   std::size_t cellCount_ = 0;
-  std::vector<Entry> entries_;  // per cell: a header (triangle = count, the next 4 bytes = spheres), then candidates
+  detail::ReallocArray<Entry> entries_;  // per cell: a header (triangle = count, the next 4 bytes = spheres), then candidates
   std::vector<Word> words_;          // dense index
   std::vector<CellRef> refs_;         // dense index: proofs of the k-th non-empty cell (read by every query)
   std::vector<std::uint32_t> headers_;  // dense index: its header in the entries (read on contact only)
