@@ -1,13 +1,12 @@
 #include "clod_haptics/core/tight_clustering.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <limits>
 #include <string>
 #include <thread>
-
-#include <Eigen/Eigenvalues>
 
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
@@ -40,9 +39,9 @@ std::uint32_t splitAtMean(std::vector<std::uint32_t>& items, std::uint32_t begin
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(cov);
     const Vec3 axis = eigen.eigenvectors().col(2);  // largest eigenvalue last
     const double cut = axis.dot(mean);
-    mid = static_cast<std::uint32_t>(
-        std::partition(items.begin() + begin, items.begin() + end, [&](std::uint32_t t) { return axis.dot(key[t]) < cut; }) -
-        items.begin());
+    mid = static_cast<std::uint32_t>(std::partition(items.begin() + begin, items.begin() + end,
+                                                    [&](std::uint32_t t) { return axis.dot(key[t]) < cut; }) -
+                                     items.begin());
   }
   // Coincident keys (or rounding) put everything on one side: halve by position instead.
   if (mid == begin || mid == end) mid = begin + (end - begin) / 2;
@@ -51,8 +50,9 @@ std::uint32_t splitAtMean(std::vector<std::uint32_t>& items, std::uint32_t begin
 
 // Labels of the points from the cluster of each item, renumbered in the order of each cluster's
 // first point (the Clustering contract).
-std::uint32_t labelPoints(const std::vector<std::uint32_t>& clusterOfItem, const std::vector<std::uint32_t>& itemOfPoint,
-                          std::uint32_t clusters, std::vector<std::uint32_t>& labels, std::vector<std::uint32_t>* firstOrder) {
+std::uint32_t labelPoints(const std::vector<std::uint32_t>& clusterOfItem,
+                          const std::vector<std::uint32_t>& itemOfPoint, std::uint32_t clusters,
+                          std::vector<std::uint32_t>& labels, std::vector<std::uint32_t>* firstOrder) {
   std::vector<std::uint32_t> renumber(clusters, kNone);
   std::uint32_t count = 0;
   for (std::size_t i = 0; i < itemOfPoint.size(); ++i) {
@@ -347,7 +347,8 @@ std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::
     for (int j = 0; j < count; ++j) {
       if (cand[j].lower > threshold || cand[j].lower >= bestExcess) continue;
       const double radius = std::sqrt(cand[j].far2);
-      const double e = capVolume(radius, std::clamp(radius - surface.signedDistance(cand[j].centre, radius), 0.0, 2.0 * radius));
+      const double e =
+          capVolume(radius, std::clamp(radius - surface.signedDistance(cand[j].centre, radius), 0.0, 2.0 * radius));
       if (std::isfinite(e) && e < bestExcess) {
         bestExcess = e;
         best = cand[j].centre;

@@ -36,7 +36,8 @@ std::shared_ptr<const SpherePlacement> placementNamed(const std::string& name) {
 double referenceSignedDistance(const TriangleMesh& mesh, const Vec3& p, bool& ambiguous) {
   double best = std::numeric_limits<double>::infinity();
   for (std::size_t t = 0; t < mesh.size(); ++t)
-    best = std::min(best, (closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2)) - p).norm());
+    best =
+        std::min(best, (closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2)) - p).norm());
   int inside = 0, outside = 0;
   for (std::size_t t = 0; t < mesh.size(); ++t) {
     const Vec3 q = closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2));

@@ -39,7 +39,8 @@ TEST(TightPlacement, HalfWayToTheFirstSurfaceBehindEachTriangle) {
           double first = std::numeric_limits<double>::infinity();
           for (std::size_t o = 0; o < mesh->size(); ++o) {
             double hit;
-            if (o != t && rayTriangle(c, -mesh->normals[t], mesh->vertex(o, 0), mesh->vertex(o, 1), mesh->vertex(o, 2), hit) &&
+            if (o != t &&
+                rayTriangle(c, -mesh->normals[t], mesh->vertex(o, 0), mesh->vertex(o, 1), mesh->vertex(o, 2), hit) &&
                 hit > minT)
               first = std::min(first, hit);
           }

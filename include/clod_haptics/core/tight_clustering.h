@@ -65,7 +65,7 @@ class SurfaceDistance {
     double hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
   };
   const TriangleMesh& mesh_;
-  std::vector<Box> boxes_;             ///< complete binary tree in heap layout, leaves last
+  std::vector<Box> boxes_;            ///< complete binary tree in heap layout, leaves last
   std::vector<std::uint32_t> order_;  ///< triangles in Morton order, kLeaf per leaf
   std::size_t leaves_ = 0;            ///< leaves in the tree (a power of two)
 };
