@@ -264,4 +264,10 @@ std::shared_ptr<const Clustering> makeClustering(const std::string& name) {
   return nullptr;
 }
 
+std::shared_ptr<const Clustering> requireClustering(const std::string& name, const std::string& what) {
+  auto strategy = makeClustering(name);
+  if (!strategy) throw InvalidParameter(what + " must be single-link, cube or tight, not '" + name + "'");
+  return strategy;
+}
+
 }  // namespace clod_haptics

@@ -12,6 +12,7 @@
 #include "clod_haptics/DetectorStatus.h"
 #include "clod_haptics/GetSphereSet.h"
 #include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/clustering.h"
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/ros/conversions.h"
@@ -99,6 +100,9 @@ void HapticDetector::readParameters() {
     throw InvalidParameter("~fast_level must be grid, hierarchy or flat, not '" + fast + "'");
   }
   if (!std::isfinite(gridRadius_) || gridRadius_ < 0.0) throw InvalidParameter("~grid_radius must be >= 0");
+  std::string clustering;
+  pnh_.param<std::string>("clustering", clustering, "single-link");
+  clustering_ = requireClustering(clustering, pnh_.resolveName("clustering"));
   if (!(markerRate_ > 0.0) || markerRate_ > 200.0) throw InvalidParameter("~marker_rate must be in (0, 200] Hz");
   if (poseQueueSize_ < 1) throw InvalidParameter("~pose_queue_size must be at least 1");
   if (publishQueueSize_ < 1) throw InvalidParameter("~publish_queue_size must be at least 1");
@@ -306,7 +310,7 @@ std::shared_ptr<const HapticDetector::Level> HapticDetector::makeLevel(double di
     }
   }
   if (!set) {
-    if (!localBuilder_) localBuilder_ = std::make_unique<ClodBuilder>(mesh_);
+    if (!localBuilder_) localBuilder_ = std::make_unique<ClodBuilder>(mesh_, std::make_shared<PaperPlacement>(), clustering_);
     set = std::make_shared<const ClodSphereSet>(localBuilder_->build(distance));
     level->source = "local";
   }

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "clod_haptics/SphereSet.h"
+#include "clod_haptics/core/clustering.h"
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/ros/conversions.h"
@@ -20,11 +21,13 @@ SphereBuilderNode::SphereBuilderNode(ros::NodeHandle nh, ros::NodeHandle pnh) : 
   options.normalize = normalize_;
   const auto start = std::chrono::steady_clock::now();
   auto mesh = std::make_shared<const TriangleMesh>(loadMesh(path, options));
-  builder_ = std::make_unique<ClodBuilder>(mesh);
+  builder_ = std::make_unique<ClodBuilder>(mesh, std::make_shared<PaperPlacement>(),
+                                          requireClustering(clustering_, pnh_.resolveName("clustering")));
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  ROS_INFO("sphere_builder: loaded '%s' (%zu triangles, %s) and placed %zu spheres in %.1f ms", path.c_str(),
-           mesh->size(), normalize_ ? "normalised to the unit cube" : ("scale " + std::to_string(scale_)).c_str(),
-           builder_->placed().size(), ms);
+  ROS_INFO("sphere_builder: loaded '%s' (%zu triangles, %s) and placed %zu spheres in %.1f ms; %s clustering",
+           path.c_str(), mesh->size(),
+           normalize_ ? "normalised to the unit cube" : ("scale " + std::to_string(scale_)).c_str(),
+           builder_->centres(), ms, clustering_.c_str());
 
   auto set = level(defaultDistance_);
   SphereSet msg;
@@ -49,6 +52,7 @@ void SphereBuilderNode::readParameters() {
   pnh_.param("normalize", normalize_, false);
   pnh_.param("default_distance", defaultDistance_, 0.003);
   pnh_.param("cache_size", cacheSize_, 32);
+  pnh_.param<std::string>("clustering", clustering_, "single-link");
   if (!std::isfinite(scale_) || scale_ <= 0.0) throw InvalidParameter("~scale must be finite and positive");
   requireNonNegative(defaultDistance_, "~default_distance");
 }

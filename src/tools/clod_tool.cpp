@@ -135,8 +135,12 @@ Loaded loadAndPlace(const Args& args) {
   l.loadMs = msSince(start);
   start = Clock::now();
   const std::string clustering = args.get("--clustering", "single-link");
-  auto strategy = makeClustering(clustering);
-  if (!strategy) throw UsageError("--clustering must be single-link, cube or tight, got '" + clustering + "'");
+  std::shared_ptr<const Clustering> strategy;
+  try {
+    strategy = requireClustering(clustering, "--clustering");
+  } catch (const InvalidParameter& e) {
+    throw UsageError(e.what());
+  }
   l.builder =
       std::make_unique<ClodBuilder>(l.mesh, std::make_shared<PaperPlacement>(0, progressPrinter(start)), strategy);
   l.placementMs = msSince(start);

@@ -9,6 +9,7 @@
 #include <limits>
 #include <numeric>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "clod_haptics/core/clustering.h"
@@ -228,6 +229,24 @@ TEST(CubeClustering, EqualsTheCubeRuleWrittenOut) {
   }
   ASSERT_EQ(clustering.cluster(pts, 0.0, labels), pts.size());
   for (std::size_t i = 0; i < pts.size(); ++i) EXPECT_EQ(labels[i], i);
+}
+
+TEST(RequireClustering, KnownNamesGiveTheirStrategyUnknownOnesAnErrorNamingTheParameter) {
+  EXPECT_NE(std::dynamic_pointer_cast<const SingleLinkClustering>(requireClustering("single-link", "~clustering")),
+            nullptr);
+  EXPECT_NE(std::dynamic_pointer_cast<const CubeClustering>(requireClustering("cube", "~clustering")), nullptr);
+  EXPECT_NE(requireClustering("tight", "~clustering"), nullptr);
+  for (const char* bad : {"", "single_link", "Cube", "tight "}) {
+    try {
+      requireClustering(bad, "/sphere_builder/clustering");
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const InvalidParameter& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("/sphere_builder/clustering"), std::string::npos) << what;
+      EXPECT_NE(what.find("'" + std::string(bad) + "'"), std::string::npos) << what;
+      EXPECT_NE(what.find("single-link"), std::string::npos) << what;
+    }
+  }
 }
 
 }  // namespace

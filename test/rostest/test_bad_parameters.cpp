@@ -45,6 +45,18 @@ TEST(BadParameters, SphereBuilderWithUnknownPackageExitsNonZero) {
       "no_such_pkg_xyz");
 }
 
+TEST(BadParameters, SphereBuilderWithUnknownClusteringExitsNonZero) {
+  expectCleanFailure(run(std::string(CLOD_SPHERE_BUILDER_PATH) +
+                         " __name:=sb_clustering _mesh:=package://clod_haptics/data/meshes/torus.obj _clustering:=chain"),
+                     "sb_clustering/clustering");
+}
+
+TEST(BadParameters, DetectorNodeWithUnknownClusteringExitsNonZero) {
+  expectCleanFailure(run(std::string(CLOD_DETECTOR_PATH) +
+                         " __name:=det_clustering _mesh:=package://clod_haptics/data/meshes/torus.obj _clustering:=x"),
+                     "det_clustering/clustering");
+}
+
 TEST(BadParameters, DetectorNodeWithoutMeshParameterExitsNonZero) {
   expectCleanFailure(run(std::string(CLOD_DETECTOR_PATH) + " __name:=det_no_mesh"), "det_no_mesh/mesh");
 }

@@ -7,11 +7,13 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <string>
 #include <thread>
 #include <vector>
 
 #include "clod_haptics/GetSphereSet.h"
 #include "clod_haptics/SphereSet.h"
+#include "clod_haptics/core/clustering.h"
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/ros/conversions.h"
@@ -36,6 +38,16 @@ std::shared_ptr<const TriangleMesh> referenceMesh() {
   return mesh;
 }
 
+/** The reference builder: the core's ClodBuilder with the clustering the node was started with (~clustering). */
+const ClodBuilder& referenceBuilder() {
+  static const ClodBuilder builder = [] {
+    std::string clustering;
+    ros::NodeHandle("~").param<std::string>("clustering", clustering, "single-link");
+    return ClodBuilder(referenceMesh(), std::make_shared<PaperPlacement>(), requireClustering(clustering, "~clustering"));
+  }();
+  return builder;
+}
+
 bool call(double d, GetSphereSet& srv) {
   srv.request.distance = d;
   return ros::service::call(kService, srv);
@@ -46,7 +58,7 @@ TEST(SphereBuilder, RoundTripMatchesTheCoreCountAndShrinksWithDistance) {
   std::vector<double> distances;
   ros::NodeHandle("~").getParam("distances", distances);
   ASSERT_EQ(distances.size(), 3u);
-  ClodBuilder reference(referenceMesh());
+  const ClodBuilder& reference = referenceBuilder();
   std::size_t previous = std::numeric_limits<std::size_t>::max();
   for (double d : distances) {
     GetSphereSet srv;
@@ -124,7 +136,7 @@ TEST(SphereBuilder, DefaultLevelIsPublishedLatched) {
   while (!latched && ros::WallTime::now() < end) ros::WallDuration(0.01).sleep();
   ASSERT_TRUE(latched) << "nothing latched on /sphere_builder/sphere_set";
   EXPECT_DOUBLE_EQ(latched->distance, d);
-  EXPECT_EQ(latched->spheres.size(), ClodBuilder(referenceMesh()).build(d).size());
+  EXPECT_EQ(latched->spheres.size(), referenceBuilder().build(d).size());
 }
 
 }  // namespace

@@ -62,4 +62,10 @@ class CubeClustering : public Clustering {
 /** \brief A clustering strategy by name: "single-link", "cube" or "tight" (TightClustering); null for anything else. */
 std::shared_ptr<const Clustering> makeClustering(const std::string& name);
 
+/**
+ * \brief makeClustering(name), or InvalidParameter naming what (e.g. "~clustering") and the known names, for
+ * the places that take the strategy from a user (command line, ROS parameter).
+ */
+std::shared_ptr<const Clustering> requireClustering(const std::string& name, const std::string& what);
+
 }  // namespace clod_haptics

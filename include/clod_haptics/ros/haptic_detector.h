@@ -39,7 +39,7 @@ class HapticDetector {
    * \brief Reads the parameters, loads the mesh and starts the threads; the first level arrives
    * asynchronously (poses before it are answered by the brute-force reference).
    * \throws MeshLoadError when ~mesh is missing, unresolvable or unreadable.
-   * \throws InvalidParameter for a bad ~scale, ~fast_level or ~detection_mode.
+   * \throws InvalidParameter for a bad ~scale, ~fast_level, ~detection_mode or ~clustering.
    */
   HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh);
   ~HapticDetector();
@@ -99,6 +99,7 @@ class HapticDetector {
   double gridRadius_ = 0.0;  // 0: the core's default (1% of the model's diagonal)
 
   std::shared_ptr<const TriangleMesh> mesh_;
+  std::shared_ptr<const Clustering> clustering_;  // ~clustering, for levels built here when the service is absent
   std::unique_ptr<ClodBuilder> localBuilder_;  // lazily, on the worker thread only
 
   // Settings the hot path reads (written by dynamic_reconfigure).

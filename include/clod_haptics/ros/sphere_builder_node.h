@@ -25,7 +25,7 @@ class SphereBuilderNode {
    * \brief Reads the parameters, loads the mesh, runs the placement, builds the default level and
    * starts serving.
    * \throws MeshLoadError when ~mesh is missing, unresolvable or unreadable.
-   * \throws InvalidParameter for a bad ~scale or ~default_distance.
+   * \throws InvalidParameter for a bad ~scale, ~default_distance or ~clustering.
    */
   SphereBuilderNode(ros::NodeHandle nh, ros::NodeHandle pnh);
 
@@ -56,6 +56,7 @@ class SphereBuilderNode {
   double scale_ = 1.0;
   bool normalize_ = false;
   double defaultDistance_ = 0.003;
+  std::string clustering_ = "single-link";  // the strategy's name (makeClustering)
   int cacheSize_ = 32;
 
   std::unique_ptr<ClodBuilder> builder_;
