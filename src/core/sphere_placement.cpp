@@ -83,9 +83,10 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
         if (normal.isZero(0.0)) continue;
         const Vec3 origin = mesh.centroid(t);
         const Vec3 dir = -normal;
-        // One nearest-first pass that skips every subtree unable to change the answer. With m the
-        // smallest dot seen so far and k its step, a subtree matters only if its normals can reach
-        // below tau_{k-1} (a lower step) or below tau_k nearer than the best hit at step k.
+        // One pass (the far side first, see forEachRayHit) that skips every subtree unable to change
+        // the answer. With m the smallest dot seen so far and k its step, a subtree matters only if its
+        // normals can reach below tau_{k-1} (a lower step) or below tau_k nearer than the best hit at
+        // step k; the origin's neighbourhood, visited last, mostly faces along the normal and is skipped.
         double minDot = std::numeric_limits<double>::infinity();
         int k = -1;  // step of minDot; -1 before the first hit
         double bestT = std::numeric_limits<double>::infinity();
