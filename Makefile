@@ -198,7 +198,7 @@ test-sanitize: deps
 	@t0=$$(date +%s); source $(SAN_WS)/devel/setup.bash && cd $(SAN_WS) && export ROS_HOME=$(BUILD)/ros_home-sanitize \
 	  ROS_LOG_DIR=$(BUILD)/ros_home-sanitize/log $(SAN_ENV) && catkin_make -j1 run_tests > $(BUILD)/sanitize_run_tests.log 2>&1; \
 	  echo "== tests: $$(( ($$(date +%s) - t0) / 60 )) min $$(( ($$(date +%s) - t0) % 60 )) s (CLOD_TIME_SCALE=$$CLOD_TIME_SCALE)"; \
-	  grep -E '^\[ +(FAILED|SKIPPED) +\]|FAILURE|runtime error|Sanitizer|ASan runtime' \
+	  grep -E '^\[ +(FAILED|SKIPPED) +\]|\]\[FAILURE\]|FAILURES: [1-9]|ERROR: max time|runtime error|Sanitizer|ASan runtime' \
 	    $(BUILD)/sanitize_run_tests.log | tail -40 || true
 	@source $(SAN_WS)/devel/setup.bash; status=0; \
 	  if grep -qE 'runtime error:|ERROR: (Address|Leak|UndefinedBehavior)Sanitizer|ASan runtime does not come first' \
