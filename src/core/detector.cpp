@@ -33,6 +33,21 @@ struct ClodDetector::Best {
   Vec3 point = Vec3::Zero();
   std::uint32_t tested = 0;
   std::uint32_t hits = 0;
+
+  /**
+   * Keeps triangle tri (closest point q, squared distance d2, through sphere) when it is nearer than the
+   * best so far, or as near with a lower index: the tie rule of bruteForceQuery. Returns whether it did.
+   */
+  bool offer(double dist2, std::uint32_t tri, std::uint32_t viaSphere, const Vec3& q) {
+    if (!(dist2 < d2 || (dist2 == d2 && (!found || tri < triangle)))) return false;
+    d2 = dist2;
+    reach = std::sqrt(dist2);
+    found = true;
+    triangle = tri;
+    sphere = viaSphere;
+    point = q;
+    return true;
+  }
 };
 
 namespace {
@@ -144,15 +159,7 @@ inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, 
   } else if (!projectInsideTriangle(p, a, b, cc, mesh_->normals[tri], q)) {
     return;
   }
-  const double d2 = (p - q).squaredNorm();
-  if (d2 < best.d2 || (d2 == best.d2 && (!best.found || tri < best.triangle))) {
-    best.d2 = d2;
-    best.reach = std::sqrt(d2);
-    best.found = true;
-    best.triangle = tri;
-    best.sphere = sphere;
-    best.point = q;
-  }
+  best.offer((p - q).squaredNorm(), tri, sphere, q);
 }
 
 void ClodDetector::preciseFlat(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const {
@@ -201,14 +208,7 @@ inline void ClodDetector::testGridTriangle(std::uint32_t tri, const Vec3& p, Det
   } else if (!projectInsideTriangle(p, v[t[0]], v[t[1]], v[t[2]], mesh_->normals[tri], q)) {
     return;
   }
-  const double d2 = (p - q).squaredNorm();
-  if (d2 < best.d2 || (d2 == best.d2 && (!best.found || tri < best.triangle))) {
-    best.d2 = d2;
-    best.reach = std::sqrt(d2);
-    best.found = true;
-    best.triangle = tri;
-    best.sphere = kNone;
-    best.point = q;
+  if (best.offer((p - q).squaredNorm(), tri, kNone, q)) {
     // The answer reads them last: start their loads while the scan goes on.
     __builtin_prefetch(normals_ + tri);
     __builtin_prefetch(sphereOfTriangle_.data() + tri);

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <random>
 
+#include "clod_haptics/core/morton.h"
+
 namespace clod_haptics {
 
 std::vector<Vec3> nearSurfaceProbes(const TriangleMesh& mesh, std::size_t count, double maxOffset, std::uint64_t seed) {
@@ -52,18 +54,6 @@ std::vector<Vec3> uniformProbes(const TriangleMesh& mesh, std::size_t count, dou
   return probes;
 }
 
-namespace {
-std::uint64_t spread(std::uint64_t x) {
-  x &= 0x1fffff;
-  x = (x | x << 32) & 0x1f00000000ffffull;
-  x = (x | x << 16) & 0x1f0000ff0000ffull;
-  x = (x | x << 8) & 0x100f00f00f00f00full;
-  x = (x | x << 4) & 0x10c30c30c30c30c3ull;
-  x = (x | x << 2) & 0x1249249249249249ull;
-  return x;
-}
-}  // namespace
-
 void sortMorton(std::vector<Vec3>& points) {
   if (points.empty()) return;
   Eigen::AlignedBox3d box;
@@ -72,10 +62,8 @@ void sortMorton(std::vector<Vec3>& points) {
   std::vector<std::pair<std::uint64_t, Vec3>> keyed;
   keyed.reserve(points.size());
   for (const Vec3& p : points) {
-    const Vec3 q = (p - box.min()) / extent * 2097151.0;
-    keyed.emplace_back(spread(static_cast<std::uint64_t>(q.x())) | spread(static_cast<std::uint64_t>(q.y())) << 1 |
-                           spread(static_cast<std::uint64_t>(q.z())) << 2,
-                       p);
+    const Vec3 q = (p - box.min()) / extent * kMortonMax;
+    keyed.emplace_back(mortonCode(q), p);
   }
   std::stable_sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   for (std::size_t i = 0; i < points.size(); ++i) points[i] = keyed[i].second;

@@ -10,6 +10,7 @@
 
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
+#include "clod_haptics/core/morton.h"
 
 namespace clod_haptics {
 namespace {
@@ -66,21 +67,6 @@ std::uint32_t labelPoints(const std::vector<std::uint32_t>& clusterOfItem,
   return count;
 }
 
-}  // namespace
-
-namespace {
-
-// Spreads the low 21 bits of x to every third bit (Morton code).
-std::uint64_t spread3(std::uint64_t x) {
-  x &= 0x1fffff;
-  x = (x | x << 32) & 0x1f00000000ffffull;
-  x = (x | x << 16) & 0x1f0000ff0000ffull;
-  x = (x | x << 8) & 0x100f00f00f00f00full;
-  x = (x | x << 4) & 0x10c30c30c30c30c3ull;
-  x = (x | x << 2) & 0x1249249249249249ull;
-  return x;
-}
-
 inline double boxDistance2(const Vec3& p, const double* lo, const double* hi) {
   double sum = 0.0;
   for (int k = 0; k < 3; ++k) {
@@ -100,14 +86,11 @@ SurfaceDistance::SurfaceDistance(const TriangleMesh& mesh) : mesh_(mesh) {
   // over the leaves in heap layout (children of i at 2i + 1 and 2i + 2): built in O(n log n) by one
   // sort, cheap next to the median-split tree since it is rebuilt on every build(d).
   const Eigen::AlignedBox3d box = mesh.bounds();
-  const Vec3 scale = (2097151.0 / box.sizes().array().max(1e-300)).matrix();
+  const Vec3 scale = (kMortonMax / box.sizes().array().max(1e-300)).matrix();
   std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);
   for (std::size_t t = 0; t < n; ++t) {
-    const Vec3 q = (mesh.centroid(t) - box.min()).cwiseProduct(scale).cwiseMax(0.0).cwiseMin(2097151.0);
-    const std::uint64_t code = spread3(static_cast<std::uint64_t>(q.x())) |
-                               spread3(static_cast<std::uint64_t>(q.y())) << 1 |
-                               spread3(static_cast<std::uint64_t>(q.z())) << 2;
-    keyed[t] = {code, static_cast<std::uint32_t>(t)};
+    const Vec3 q = (mesh.centroid(t) - box.min()).cwiseProduct(scale).cwiseMax(0.0).cwiseMin(kMortonMax);
+    keyed[t] = {mortonCode(q), static_cast<std::uint32_t>(t)};
   }
   std::sort(keyed.begin(), keyed.end());
   order_.resize(n);
