@@ -329,7 +329,8 @@ def main():
             "covered with an outside volume at most 0.40 (Hubbard's) at a comparable sphere count. Ours twice, on the "
             "same ray-cast placement: single-link clustering (`clod`, the default) and the cube clustering "
             "(`clod-cube`, `makeClustering(\"cube\")`); the octree has the single-link set's sphere count. Build ms: "
-            "placement + clustering of that level.\n")
+            "a fresh ClodBuilder (placement on all hardware threads, then build(d) of that level), best of three "
+            "runs (single runs on this shared machine mostly measure the other jobs).\n")
         md.append(
             "The tight clustering (`clod-tight`, `makeClustering(\"tight\")`, same placement) in a table of its own, "
             "beside an octree of its own sphere count (`octree-tight`): the surface split top-down into patches, "
