@@ -479,21 +479,14 @@ def targets(build, sweep, peers, tight, growth):
         if b:
             ms = num(b[0]["placement_ms"]) + num(b[0]["build_ms"])
             rows.append([f"... built in < 50 ms ({b[0]['triangles']} triangles)", f"{f(ms)} ms", met(ms < 50)])
-    cube = [r for r in tight if r["mesh"] == HEADLINE_MESH and r["kind"] == "clod-cube"]
-    if cube:
-        best = min(cube, key=lambda r: abs(math.log(max(num(r["spheres"]), 1) / 508.0)))
+    for kind, label in (("clod-cube", "cube"), ("clod-tight", "tight")):
+        kind_rows = [r for r in tight if r["mesh"] == HEADLINE_MESH and r["kind"] == kind]
+        if not kind_rows:
+            continue
+        best = min(kind_rows, key=lambda r: abs(math.log(max(num(r["spheres"]), 1) / 508.0)))
         cov = num(best["surface_covered"])
         out = num(best["outside_volume_rel"])
-        rows.append([f"... the same with the cube clustering (clod-cube, ~508 spheres)",
-                     f"d = {best['d']}: {best['spheres']} spheres, covered {cov:.6f}, outside {f(out)}, "
-                     f"built in {f(best['build_ms'])} ms",
-                     met(cov == 1.0 and out <= 0.40 and num(best["build_ms"]) < 50)])
-    tight_rows = [r for r in tight if r["mesh"] == HEADLINE_MESH and r["kind"] == "clod-tight"]
-    if tight_rows:
-        best = min(tight_rows, key=lambda r: abs(math.log(max(num(r["spheres"]), 1) / 508.0)))
-        cov = num(best["surface_covered"])
-        out = num(best["outside_volume_rel"])
-        rows.append([f"... the same with the tight clustering (clod-tight, ~508 spheres)",
+        rows.append([f"... the same with the {label} clustering ({kind}, ~508 spheres)",
                      f"d = {best['d']}: {best['spheres']} spheres, covered {cov:.6f}, outside {f(out)}, "
                      f"built in {f(best['build_ms'])} ms",
                      met(cov == 1.0 and out <= 0.40 and num(best["build_ms"]) < 50)])
