@@ -31,6 +31,7 @@
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/test_config.h"
+#include "detector_answers.h"
 #include "run_command.h"
 
 namespace clod_haptics {
@@ -51,16 +52,13 @@ struct Pose {
 
 class Rig {
  public:
-  Rig() {
+  Rig() : answers_(kDetector) {
     MeshLoadOptions options;  // as the nodes load it: scale 1, not normalised
     std::string path;
     ros::NodeHandle("~").getParam("mesh", path);
     mesh_ = std::make_shared<const TriangleMesh>(loadMesh(path, options));
     builder_ = std::make_unique<ClodBuilder>(mesh_);
     posePub_ = nh_.advertise<geometry_msgs::PoseStamped>("/phantom/pose", 1000);
-    contactSub_ = nh_.subscribe(std::string(kDetector) + "/contact", 10000, &Rig::onContact, this);
-    forceSub_ = nh_.subscribe(std::string(kDetector) + "/force", 10000, &Rig::onForce, this);
-    statusSub_ = nh_.subscribe(std::string(kDetector) + "/status", 10, &Rig::onStatus, this);
     geometry_msgs::TransformStamped t;
     t.header.stamp = ros::Time::now();
     t.header.frame_id = "world";
@@ -75,21 +73,13 @@ class Rig {
 
   bool waitReady(double seconds = 60.0) {
     return waitFor(
-        [&] {
-          return status().level_spheres > 0 && posePub_.getNumSubscribers() > 0 &&
-                 contactSub_.getNumPublishers() > 0 && forceSub_.getNumPublishers() > 0;
-        },
+        [&] { return status().level_spheres > 0 && posePub_.getNumSubscribers() > 0 && answers_.connected(); },
         seconds);
   }
 
   template <class Pred>
   static bool waitFor(Pred pred, double seconds) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(seconds));
-    while (ros::ok() && ros::WallTime::now() < end) {
-      if (pred()) return true;
-      ros::WallDuration(0.005).sleep();
-    }
-    return false;
+    return clod_haptics_test::waitUntil(pred, seconds);
   }
 
   ros::Time publish(const Pose& pose) {
@@ -112,45 +102,17 @@ class Rig {
   }
 
   bool waitAnswer(const ros::Time& stamp, Contact& c, geometry_msgs::WrenchStamped& f, double seconds = 5.0) {
-    return waitFor(
-        [&] {
-          std::lock_guard<std::mutex> lock(mutex_);
-          auto ci = contacts_.find(stamp);
-          auto fi = forces_.find(stamp);
-          if (ci == contacts_.end() || fi == forces_.end()) return false;
-          c = ci->second;
-          f = fi->second;
-          return true;
-        },
-        seconds);
+    return answers_.waitAnswer(stamp, c, f, seconds);
   }
 
-  bool answered(const ros::Time& stamp) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return contacts_.count(stamp) > 0 || forces_.count(stamp) > 0;
-  }
+  bool answered(const ros::Time& stamp) { return answers_.hasContact(stamp) || answers_.hasForce(stamp); }
 
-  DetectorStatus status() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return status_;
-  }
+  DetectorStatus status() { return answers_.status(); }
 
   /** Sets doubles and strings through dynamic_reconfigure; returns the configuration the server applied. */
   bool reconfigure(const std::map<std::string, double>& doubles, const std::map<std::string, std::string>& strings,
                    dynamic_reconfigure::Config& applied) {
-    dynamic_reconfigure::Reconfigure srv;
-    for (const auto& kv : doubles) {
-      dynamic_reconfigure::DoubleParameter p;
-      p.name = kv.first;
-      p.value = kv.second;
-      srv.request.config.doubles.push_back(p);
-    }
-    for (const auto& kv : strings) {
-      dynamic_reconfigure::StrParameter p;
-      p.name = kv.first;
-      p.value = kv.second;
-      srv.request.config.strs.push_back(p);
-    }
+    dynamic_reconfigure::Reconfigure srv = clod_haptics_test::reconfigureRequest(doubles, strings);
     if (!ros::service::call(std::string(kDetector) + "/set_parameters", srv)) return false;
     applied = srv.response.config;
     return true;
@@ -216,31 +178,15 @@ class Rig {
   const std::vector<Vec3>& probes() const { return probes_; }
 
  private:
-  void onContact(const ContactConstPtr& c) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    contacts_[c->header.stamp] = *c;
-  }
-  void onForce(const geometry_msgs::WrenchStampedConstPtr& f) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    forces_[f->header.stamp] = *f;
-  }
-  void onStatus(const DetectorStatusConstPtr& s) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    status_ = *s;
-  }
-
   ros::NodeHandle nh_;
   std::shared_ptr<const TriangleMesh> mesh_;
   std::unique_ptr<ClodBuilder> builder_;
   std::vector<Vec3> probes_;
   tf2_ros::StaticTransformBroadcaster broadcaster_;
   ros::Publisher posePub_;
-  ros::Subscriber contactSub_, forceSub_, statusSub_;
-  std::mutex mutex_;
+  clod_haptics_test::DetectorAnswers answers_;
+  std::mutex mutex_;  // the stamp counter
   std::uint64_t counter_ = 0;
-  std::map<ros::Time, Contact> contacts_;
-  std::map<ros::Time, geometry_msgs::WrenchStamped> forces_;
-  DetectorStatus status_;
 };
 
 Rig& rig() {
@@ -248,9 +194,9 @@ Rig& rig() {
   return r;
 }
 
-const double kRadius = 0.002;      // config/detector.yaml
-const double kStiffness = 400.0;   // config/detector.yaml
-const double kDistance = 0.003;    // config/detector.yaml
+const double kRadius = 0.002;     // config/detector.yaml
+const double kStiffness = 400.0;  // config/detector.yaml
+const double kDistance = 0.003;   // config/detector.yaml
 
 TEST(BadInputs, NonFinitePosesAreDroppedAndCounted) {
   Rig& r = rig();
@@ -294,8 +240,7 @@ TEST(BadInputs, NonFinitePosesAreDroppedAndCounted) {
     const ros::Time bad = r.publish(k.pose);
     r.expectValidPosesAnsweredCorrectly(kRadius, kStiffness, k.name);
     EXPECT_FALSE(r.answered(bad)) << k.name << " was answered";
-    EXPECT_TRUE(Rig::waitFor(
-        [&] { return r.status().dropped_non_finite == before.dropped_non_finite + 1; }, 5.0))
+    EXPECT_TRUE(Rig::waitFor([&] { return r.status().dropped_non_finite == before.dropped_non_finite + 1; }, 5.0))
         << k.name << ": not counted in ~status dropped_non_finite";
     Rig::expectNodesUp(k.name);
   }
@@ -304,8 +249,8 @@ TEST(BadInputs, NonFinitePosesAreDroppedAndCounted) {
 TEST(BadInputs, HugeFinitePosesAreAnsweredWithoutContactOrForce) {
   Rig& r = rig();
   ASSERT_TRUE(r.waitReady());
-  for (const Vec3& huge : {Vec3(1e300, 0.0, 0.0), Vec3(-1e300, 1e300, 1e300), Vec3(0.0, 0.0, -1e300),
-                           Vec3(1.7e308, -1.7e308, 1.7e308)}) {
+  for (const Vec3& huge :
+       {Vec3(1e300, 0.0, 0.0), Vec3(-1e300, 1e300, 1e300), Vec3(0.0, 0.0, -1e300), Vec3(1.7e308, -1.7e308, 1.7e308)}) {
     Pose pose;
     pose.position = huge;
     Contact c;
@@ -342,8 +287,7 @@ TEST(BadInputs, UnknownFrameIsDroppedAndCounted) {
     const ros::Time bad = r.publish(pose);
     r.expectValidPosesAnsweredCorrectly(kRadius, kStiffness, std::string("frame '") + frame + "'");
     EXPECT_FALSE(r.answered(bad)) << frame;
-    EXPECT_TRUE(Rig::waitFor(
-        [&] { return r.status().dropped_unknown_frame == before.dropped_unknown_frame + 1; }, 5.0))
+    EXPECT_TRUE(Rig::waitFor([&] { return r.status().dropped_unknown_frame == before.dropped_unknown_frame + 1; }, 5.0))
         << frame << ": not counted";
   }
   Rig::expectNodesUp("unknown frames");
@@ -453,25 +397,23 @@ void expectCleanFailure(const Outcome& o, const std::string& file) {
   EXPECT_NE(o.exitCode, 137) << "killed (hung) instead of exiting: " << o.output;
   EXPECT_NE(o.exitCode, -1) << "crashed: " << o.output;
   EXPECT_NE(o.output.find(file), std::string::npos) << "the error should name " << file << ": " << o.output;
-  EXPECT_TRUE(o.output.find("ERROR") != std::string::npos || o.output.find("FATAL") != std::string::npos)
-      << o.output;
+  EXPECT_TRUE(o.output.find("ERROR") != std::string::npos || o.output.find("FATAL") != std::string::npos) << o.output;
 }
 
 const char* kBrokenFiles[] = {"truncated_faces.off", "truncated_vertices.off", "truncated_binary.ply"};
 
 TEST(BadInputs, TruncatedMeshFilesMakeSphereBuilderExitWithAClearError) {
   for (const char* file : kBrokenFiles) {
-    expectCleanFailure(run(std::string(CLOD_SPHERE_BUILDER_PATH) + " __name:=sb_broken _mesh:=" +
-                           CLOD_TEST_DATA_DIR + "/" + file),
-                       file);
+    expectCleanFailure(
+        run(std::string(CLOD_SPHERE_BUILDER_PATH) + " __name:=sb_broken _mesh:=" + CLOD_TEST_DATA_DIR + "/" + file),
+        file);
   }
 }
 
 TEST(BadInputs, TruncatedMeshFilesMakeTheDetectorNodeExitWithAClearError) {
   for (const char* file : kBrokenFiles) {
-    expectCleanFailure(run(std::string(CLOD_DETECTOR_PATH) + " __name:=det_broken _mesh:=" + CLOD_TEST_DATA_DIR +
-                           "/" + file),
-                       file);
+    expectCleanFailure(
+        run(std::string(CLOD_DETECTOR_PATH) + " __name:=det_broken _mesh:=" + CLOD_TEST_DATA_DIR + "/" + file), file);
   }
 }
 

@@ -25,6 +25,7 @@
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/ros/mesh_resource.h"
+#include "detector_answers.h"
 #include "test_timing.h"
 
 namespace clod_haptics {
@@ -33,8 +34,7 @@ namespace {
 /** Talks to one detector: publishes poses with unique stamps and collects the answers by stamp. */
 class DetectorClient {
  public:
-  DetectorClient() : pnh_("~") {
-    pnh_.param<std::string>("detector", ns_, "/detector");
+  DetectorClient() : pnh_("~"), ns_(pnh_.param<std::string>("detector", "/detector")), answers_(ns_) {
     pnh_.param<std::string>("pose_frame", poseFrame_, "world");
     std::string meshUri;
     pnh_.getParam("mesh", meshUri);
@@ -68,21 +68,13 @@ class DetectorClient {
     dnh.param("pointer_radius", radius_, 0.002);
     dnh.param("stiffness", stiffness_, 500.0);
     posePub_ = nh_.advertise<geometry_msgs::PoseStamped>("/phantom/pose", 1000);
-    contactSub_ = nh_.subscribe(ns_ + "/contact", 10000, &DetectorClient::onContact, this);
-    forceSub_ = nh_.subscribe(ns_ + "/force", 10000, &DetectorClient::onForce, this);
-    statusSub_ = nh_.subscribe(ns_ + "/status", 10, &DetectorClient::onStatus, this);
   }
 
   /** Waits for the first level and the connections. */
   bool waitReady(double seconds = 60.0) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(seconds));
-    while (ros::ok() && ros::WallTime::now() < end) {
-      if (status().level_spheres > 0 && posePub_.getNumSubscribers() > 0 && contactSub_.getNumPublishers() > 0 &&
-          forceSub_.getNumPublishers() > 0)
-        return true;
-      ros::WallDuration(0.02).sleep();
-    }
-    return false;
+    return clod_haptics_test::waitUntil(
+        [&] { return status().level_spheres > 0 && posePub_.getNumSubscribers() > 0 && answers_.connected(); }, seconds,
+        0.02);
   }
 
   /** Publishes a pose (position in the pose frame) with a fresh unique stamp; returns the stamp. */
@@ -100,71 +92,24 @@ class DetectorClient {
 
   /** Waits for the contact and the force of a stamp. */
   bool waitAnswer(const ros::Time& stamp, Contact& contact, geometry_msgs::WrenchStamped& force, double seconds = 5.0) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(seconds));
-    while (ros::ok() && ros::WallTime::now() < end) {
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        auto c = contacts_.find(stamp);
-        auto f = forces_.find(stamp);
-        if (c != contacts_.end() && f != forces_.end()) {
-          contact = c->second;
-          force = f->second;
-          return true;
-        }
-      }
-      ros::WallDuration(0.0005).sleep();
-    }
-    return false;
+    return answers_.waitAnswer(stamp, contact, force, seconds);
   }
 
-  bool answered(const ros::Time& stamp) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return contacts_.count(stamp) > 0;
-  }
-  std::map<ros::Time, Contact> contacts() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return contacts_;
-  }
-  DetectorStatus status() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return status_;
-  }
+  bool answered(const ros::Time& stamp) { return answers_.hasContact(stamp); }
+  std::map<ros::Time, Contact> contacts() { return answers_.contacts(); }
+  DetectorStatus status() { return answers_.status(); }
   /** Waits until pred(status) holds. */
   template <class Pred>
   bool waitStatus(Pred pred, double seconds = 10.0) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(clod_haptics_test::scaled(seconds));
-    while (ros::ok() && ros::WallTime::now() < end) {
-      if (pred(status())) return true;
-      ros::WallDuration(0.01).sleep();
-    }
-    return false;
+    return clod_haptics_test::waitUntil([&] { return pred(status()); }, seconds, 0.01);
   }
 
   /** Sets the detector's clustering distance through dynamic_reconfigure. */
-  bool setClusteringDistance(double d) {
-    dynamic_reconfigure::Reconfigure srv;
-    dynamic_reconfigure::DoubleParameter param;
-    param.name = "clustering_distance";
-    param.value = d;
-    srv.request.config.doubles.push_back(param);
-    return ros::service::call(ns_ + "/set_parameters", srv);
-  }
+  bool setClusteringDistance(double d) { return reconfigure({{"clustering_distance", d}}, {}); }
 
   /** Sets doubles and strings of the detector's dynamic_reconfigure in one call. */
   bool reconfigure(const std::map<std::string, double>& doubles, const std::map<std::string, std::string>& strings) {
-    dynamic_reconfigure::Reconfigure srv;
-    for (const auto& kv : doubles) {
-      dynamic_reconfigure::DoubleParameter param;
-      param.name = kv.first;
-      param.value = kv.second;
-      srv.request.config.doubles.push_back(param);
-    }
-    for (const auto& kv : strings) {
-      dynamic_reconfigure::StrParameter param;
-      param.name = kv.first;
-      param.value = kv.second;
-      srv.request.config.strs.push_back(param);
-    }
+    dynamic_reconfigure::Reconfigure srv = clod_haptics_test::reconfigureRequest(doubles, strings);
     return ros::service::call(ns_ + "/set_parameters", srv);
   }
 
@@ -214,22 +159,11 @@ class DetectorClient {
     return ros::Time(100, 0) + ros::Duration(0, static_cast<std::int32_t>(stampCounter_ % 1000000) * 1000) +
            ros::Duration(static_cast<double>(stampCounter_ / 1000000));
   }
-  void onContact(const ContactConstPtr& c) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    contacts_[c->header.stamp] = *c;
-  }
-  void onForce(const geometry_msgs::WrenchStampedConstPtr& f) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    forces_[f->header.stamp] = *f;
-  }
-  void onStatus(const DetectorStatusConstPtr& s) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    status_ = *s;
-  }
 
   ros::NodeHandle nh_;
   ros::NodeHandle pnh_;
   std::string ns_;
+  clod_haptics_test::DetectorAnswers answers_;
   std::string poseFrame_;
   TriangleMesh mesh_;
   Eigen::Isometry3d meshToPose_ = Eigen::Isometry3d::Identity();
@@ -237,12 +171,8 @@ class DetectorClient {
   double stiffness_ = 500.0;
   tf2_ros::StaticTransformBroadcaster staticBroadcaster_;
   ros::Publisher posePub_;
-  ros::Subscriber contactSub_, forceSub_, statusSub_;
-  std::mutex mutex_;
+  std::mutex mutex_;  // the stamp counter
   std::uint64_t stampCounter_ = 0;
-  std::map<ros::Time, Contact> contacts_;
-  std::map<ros::Time, geometry_msgs::WrenchStamped> forces_;
-  DetectorStatus status_;
 };
 
 DetectorClient& client() {

@@ -4,6 +4,8 @@
 // devel space exports it, see cmake/50.clod_haptics_test_env.sh.in), as their .test time-limit does. A deadline
 // only bounds how long a test waits for something that must happen; it never passes a test by itself.
 
+#include <ros/ros.h>
+
 #include <cmath>
 #include <cstdlib>
 
@@ -18,5 +20,16 @@ inline double timeScale() {
 
 /** \brief A deadline (seconds) of the normal build scaled for this build. */
 inline double scaled(double seconds) { return seconds * timeScale(); }
+
+/** \brief Polls pred every poll seconds until it holds (true) or the scaled deadline passes (false). */
+template <class Pred>
+bool waitUntil(Pred pred, double seconds, double poll = 0.005) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(scaled(seconds));
+  while (ros::ok() && ros::WallTime::now() < end) {
+    if (pred()) return true;
+    ros::WallDuration(poll).sleep();
+  }
+  return false;
+}
 
 }  // namespace clod_haptics_test
