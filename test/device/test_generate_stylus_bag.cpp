@@ -2,16 +2,14 @@
 // against the mesh with the core's brute-force reference: 1 kHz, free space at the start and end,
 // pressed in by --depth during the slide, sliding about --slide-length along the surface.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <array>
-#include <cstdio>
 #include <string>
 
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/device/bag_source.h"
 #include "clod_haptics/test_config.h"
+#include "../rostest/run_command.h"
 
 using namespace clod_haptics;
 
@@ -19,21 +17,11 @@ namespace {
 
 const std::string kScript = CLOD_PACKAGE_DATA_DIR "/../scripts/generate_stylus_bag.py";
 
-struct Outcome {
-  int exitCode = -1;
-  std::string output;
-};
+using clod_haptics_test::Outcome;
 
 /** Runs the generator with the Python catkin uses (the one with rosbag), capturing its output. */
 Outcome runGenerator(const std::string& args) {
-  Outcome o;
-  FILE* pipe = popen((std::string(CLOD_PYTHON) + " " + kScript + " " + args + " 2>&1").c_str(), "r");
-  if (!pipe) return o;
-  std::array<char, 512> buffer;
-  while (fgets(buffer.data(), buffer.size(), pipe)) o.output += buffer.data();
-  const int status = pclose(pipe);
-  o.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return o;
+  return clod_haptics_test::capture(std::string(CLOD_PYTHON) + " " + kScript + " " + args);
 }
 
 struct Case {

@@ -1,6 +1,7 @@
 #pragma once
 
-// Runs a command the way the bad-input rostests need: with a time limit, stdout and stderr captured.
+// Runs a command with stdout and stderr captured: with a time limit (run: the bad-input rostests) or without
+// (capture: the generator script test).
 
 #include <sys/wait.h>
 
@@ -19,6 +20,18 @@ struct Outcome {
   std::string output;
 };
 
+/** \brief Runs command through the shell, without a time limit, capturing stdout and stderr. */
+inline Outcome capture(const std::string& command) {
+  Outcome o;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return o;
+  std::array<char, 512> buffer;
+  while (fgets(buffer.data(), buffer.size(), pipe)) o.output += buffer.data();
+  const int status = pclose(pipe);
+  o.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return o;
+}
+
 /**
  * \brief Runs command under `timeout -k 5 [-s signal] limit`, so a hang shows as 124 or 137.
  *
@@ -26,16 +39,9 @@ struct Outcome {
  * "INT") is what timeout sends at the limit, its default TERM when empty.
  */
 inline Outcome run(const std::string& command, double limit = 30.0, const std::string& signal = "") {
-  Outcome o;
   const std::string timeout =
       "timeout -k 5 " + (signal.empty() ? std::string() : "-s " + signal + " ") + std::to_string(scaled(limit));
-  FILE* pipe = popen((timeout + " " + command + " 2>&1").c_str(), "r");
-  if (!pipe) return o;
-  std::array<char, 512> buffer;
-  while (fgets(buffer.data(), buffer.size(), pipe)) o.output += buffer.data();
-  const int status = pclose(pipe);
-  o.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return o;
+  return capture(timeout + " " + command);
 }
 
 /**
