@@ -5,6 +5,7 @@
 #include <cstring>
 #include <limits>
 #include <thread>
+#include <atomic>
 
 namespace clod_haptics {
 namespace {
@@ -200,21 +201,80 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
     b.build(nodes, 0, count, 0);
     return;
   }
-  // The root's split here, its left subtree on this thread straight into nodes, its right subtree on
-  // a second thread into its own array, appended with the right-child indices shifted: the same tree
-  // as the serial build.
-  nodes.emplace_back();
+  // The two top levels' splits first (the second level's two on two threads), then the up to four
+  // subtrees below them built into arrays of their own by two threads, each taking the largest one
+  // left, then appended in the serial build's depth-first order with their node indices shifted: the
+  // same tree as the serial build, node for node, with the work balanced however uneven the splits.
+  struct Task {
+    std::uint32_t begin, end;
+    int depth;
+    std::vector<Node> nodes;
+  };
+  const std::uint32_t leaf = static_cast<std::uint32_t>(b.leafSize);
   const std::uint32_t mid = b.split(0, count, b.centreBox(0, count), 0);
-  std::vector<Node> right;
-  right.reserve(2 * (n - mid));
-  std::thread worker([&]() { b.build(right, mid, count, 1); });
-  b.build(nodes, 0, mid, 1);
-  worker.join();
-  const std::uint32_t base = static_cast<std::uint32_t>(nodes.size());
-  for (Node& node : right)
-    if (node.count == 0) node.first += base;
-  nodes.insert(nodes.end(), right.begin(), right.end());
-  Build::join(nodes[0], nodes[1], nodes[base], base);
+  const std::uint32_t halves[3] = {0, mid, count};
+  std::uint32_t quarter[2];  // each half's split, or its end when the half is a leaf
+  auto splitHalf = [&](int h) {
+    const std::uint32_t begin = halves[h], end = halves[h + 1];
+    quarter[h] = end - begin > leaf ? b.split(begin, end, b.centreBox(begin, end), 1) : end;
+  };
+  {
+    std::thread second(splitHalf, 1);
+    splitHalf(0);
+    second.join();
+  }
+  std::vector<Task> tasks;
+  tasks.reserve(4);
+  for (int h = 0; h < 2; ++h) {
+    if (quarter[h] == halves[h + 1]) {
+      tasks.push_back({halves[h], halves[h + 1], 1, {}});
+    } else {
+      tasks.push_back({halves[h], quarter[h], 2, {}});
+      tasks.push_back({quarter[h], halves[h + 1], 2, {}});
+    }
+  }
+  std::vector<std::size_t> bySize(tasks.size());
+  for (std::size_t i = 0; i < bySize.size(); ++i) bySize[i] = i;
+  std::sort(bySize.begin(), bySize.end(), [&](std::size_t x, std::size_t y) {
+    return tasks[x].end - tasks[x].begin > tasks[y].end - tasks[y].begin;
+  });
+  std::atomic<std::size_t> next{0};
+  auto work = [&]() {
+    for (std::size_t i; (i = next.fetch_add(1)) < bySize.size();) {
+      Task& task = tasks[bySize[i]];
+      task.nodes.reserve(2 * std::size_t(task.end - task.begin));
+      b.build(task.nodes, task.begin, task.end, task.depth);
+    }
+  };
+  {
+    std::thread second(work);
+    work();
+    second.join();
+  }
+  // Appends a task's subtree and returns the index of its root.
+  auto append = [&](Task& task) {
+    const std::uint32_t base = static_cast<std::uint32_t>(nodes.size());
+    for (Node& node : task.nodes)
+      if (node.count == 0) node.first += base;
+    nodes.insert(nodes.end(), task.nodes.begin(), task.nodes.end());
+    std::vector<Node>().swap(task.nodes);
+    return base;
+  };
+  nodes.emplace_back();  // the root
+  std::uint32_t half[2];
+  std::size_t t = 0;
+  for (int h = 0; h < 2; ++h) {
+    if (quarter[h] == halves[h + 1]) {
+      half[h] = append(tasks[t++]);
+      continue;
+    }
+    half[h] = static_cast<std::uint32_t>(nodes.size());
+    nodes.emplace_back();
+    const std::uint32_t left = append(tasks[t++]);
+    const std::uint32_t right = append(tasks[t++]);
+    Build::join(nodes[half[h]], nodes[left], nodes[right], right);
+  }
+  Build::join(nodes[0], nodes[half[0]], nodes[half[1]], half[1]);
 }
 
 }  // namespace
@@ -222,15 +282,26 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
 TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned threads) : mesh_(mesh) {
   const std::size_t n = mesh.size();
   if (n == 0) return;
+  // Every vertex rounded outward once (a vertex is shared by about six triangles), then each
+  // triangle's box from its three corners.
+  const std::size_t nv = mesh.vertices.size();
+  std::vector<float> rounded(6 * nv);  // per vertex: down x y z, up x y z
   std::vector<Prim> prims(n);
+  auto roundVertices = [&](std::size_t begin, std::size_t end) {
+    for (std::size_t v = begin; v < end; ++v)
+      for (int k = 0; k < 3; ++k) {
+        rounded[6 * v + k] = down(mesh.vertices[v][k]);
+        rounded[6 * v + 3 + k] = up(mesh.vertices[v][k]);
+      }
+  };
   auto fill = [&](std::size_t begin, std::size_t end) {
     for (std::size_t t = begin; t < end; ++t) {
       Prim& p = prims[t];
       for (int v = 0; v < 3; ++v) {
-        const Vec3& x = mesh.vertex(t, v);
+        const float* r = &rounded[6 * std::size_t(mesh.triangles[t][v])];
         for (int k = 0; k < 3; ++k) {
-          p.box.lo[k] = std::min(p.box.lo[k], down(x[k]));
-          p.box.hi[k] = std::max(p.box.hi[k], up(x[k]));
+          p.box.lo[k] = std::min(p.box.lo[k], r[k]);
+          p.box.hi[k] = std::max(p.box.hi[k], r[3 + k]);
         }
       }
       for (int k = 0; k < 3; ++k) p.centre[k] = 0.5f * p.box.lo[k] + 0.5f * p.box.hi[k];
@@ -239,12 +310,17 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
   };
   const bool parallel = threads >= 2 && n >= 4096;
   if (parallel) {
-    std::thread half([&]() { fill(n / 2, n); });
-    fill(0, n / 2);
+    std::thread half([&]() { roundVertices(nv / 2, nv); });
+    roundVertices(0, nv / 2);
     half.join();
+    std::thread other([&]() { fill(n / 2, n); });
+    fill(0, n / 2);
+    other.join();
   } else {
+    roundVertices(0, nv);
     fill(0, n);
   }
+  std::vector<float>().swap(rounded);
   buildNodes(mesh, prims, leafSize, parallel, nodes_);
   order_.resize(n);
   for (std::size_t i = 0; i < n; ++i) order_[i] = prims[i].index;
