@@ -7,8 +7,14 @@
 #include <string>
 
 #include "clod_haptics/core/errors.h"
+#include "parallel.h"
 
 namespace clod_haptics {
+namespace {
+
+constexpr std::size_t kMinPointsPerThread = 8192;  // below this per thread, build's passes stay on one
+
+}  // namespace
 
 void requireNonNegative(double value, const char* what) {
   if (!std::isfinite(value) || value < 0.0)
@@ -59,57 +65,114 @@ ClodSphereSet ClodBuilder::build(double d) const {
   set.radii.assign(k, 0.0);
   set.offsets.assign(k + 1, 0);
 
-  if (chosen.size() == k) {
-    set.centres = std::move(chosen);
-  } else {  // Mean of the member centres.
+  const std::size_t points = centres_.size();
+  // Large inputs split their passes over two or more threads (one pass is one core's worth of memory
+  // traffic); every value is computed as on one thread, in the same order where the order matters.
+  const unsigned threads = detail::threadsFor(points, 0, kMinPointsPerThread);
+
+  // Mean of the member centres (summed in point order, as one thread would: one thread does all of it),
+  // beside the sort of the points by the triangle they wrap.
+  auto means = [&] {
+    if (chosen.size() == k) {
+      set.centres = std::move(chosen);
+      return;
+    }
     std::vector<std::uint32_t> members(k, 0);
-    for (std::size_t i = 0; i < centres_.size(); ++i) {
+    for (std::size_t i = 0; i < points; ++i) {
       set.centres[labels[i]] += centres_[i];
       ++members[labels[i]];
     }
     for (std::uint32_t c = 0; c < k; ++c) set.centres[c] /= static_cast<double>(members[c]);
-  }
+  };
 
   // Triangle lists, ascending and unique per cluster, in O(n) without sorting: the points are visited in
   // ascending order of the triangle they wrap (a counting sort over the triangles), so appending each
   // to its cluster keeps every list ascending, and a duplicate is always the list's last entry. One
   // pass counts, one fills the exactly sized array.
-  const std::size_t points = centres_.size();
   std::vector<std::uint32_t> byTriangle(points);
-  {
+  auto sortByTriangle = [&] {
     std::vector<std::uint32_t> next(mesh.size() + 1, 0);
     for (std::size_t i = 0; i < points; ++i) ++next[wrapped_[i] + 1];
     for (std::size_t t = 0; t < mesh.size(); ++t) next[t + 1] += next[t];
     for (std::size_t i = 0; i < points; ++i) byTriangle[next[wrapped_[i]]++] = static_cast<std::uint32_t>(i);
-  }
-  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-  std::vector<std::uint32_t> last(k, kNone);  // the last triangle appended to each cluster
-  for (const std::uint32_t i : byTriangle) {
-    const std::uint32_t c = labels[i], t = wrapped_[i];
-    if (last[c] == t) continue;
-    last[c] = t;
-    ++set.offsets[c + 1];
-  }
-  for (std::uint32_t c = 0; c < k; ++c) set.offsets[c + 1] += set.offsets[c];
-  set.triangles.resize(set.offsets[k]);
-  {
-    std::vector<std::uint32_t> fill(set.offsets.begin(), set.offsets.end() - 1);
-    std::fill(last.begin(), last.end(), kNone);
-    for (const std::uint32_t i : byTriangle) {
-      const std::uint32_t c = labels[i], t = wrapped_[i];
-      if (last[c] == t) continue;
-      last[c] = t;
-      set.triangles[fill[c]++] = t;
-    }
+  };
+  if (threads > 1) {
+    detail::runParallel(2, [&](unsigned t) { t ? sortByTriangle() : means(); });
+  } else {
+    means();
+    sortByTriangle();
   }
 
-  // Radius: reach every vertex of every wrapped triangle (the coverage invariant).
-  for (std::uint32_t c = 0; c < k; ++c) {
-    double r2 = 0.0;
-    for (const std::uint32_t* t = set.begin(c); t != set.end(c); ++t)
-      for (int v = 0; v < 3; ++v) r2 = std::max(r2, (mesh.vertex(*t, v) - set.centres[c]).squaredNorm());
-    set.radii[c] = std::sqrt(r2);
+  // The lists: the sorted points split among the threads at triangle boundaries (so a duplicate stays
+  // within one part); each part counts and fills its clusters' entries after those of the parts before.
+  // Per thread two arrays of one entry per cluster: only when there are few clusters per point.
+  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+  const unsigned parts = k <= points / 8 ? threads : 1;
+  std::vector<std::size_t> cut(parts + 1, points);
+  for (unsigned j = 0; j < parts; ++j) {
+    std::size_t at = points * j / parts;
+    while (at > 0 && at < points && wrapped_[byTriangle[at]] == wrapped_[byTriangle[at - 1]]) ++at;
+    cut[j] = at;
   }
+  std::vector<std::vector<std::uint32_t>> last(parts), count(parts);  // per part and cluster
+  detail::runParallel(parts, [&](unsigned j) {
+    last[j].assign(k, kNone);  // the last triangle appended to each cluster
+    count[j].assign(k, 0);
+    for (std::size_t p = cut[j]; p < cut[j + 1]; ++p) {
+      const std::uint32_t i = byTriangle[p], c = labels[i], t = wrapped_[i];
+      if (last[j][c] == t) continue;
+      last[j][c] = t;
+      ++count[j][c];
+    }
+  });
+  for (std::uint32_t c = 0; c < k; ++c) {
+    std::uint32_t start = set.offsets[c];
+    for (unsigned j = 0; j < parts; ++j) {
+      const std::uint32_t entries = count[j][c];
+      count[j][c] = start;  // now where part j's entries of cluster c go
+      start += entries;
+    }
+    set.offsets[c + 1] = start;
+  }
+  set.triangles.resize(set.offsets[k]);
+  detail::runParallel(parts, [&](unsigned j) {
+    std::vector<std::uint32_t>& fill = count[j];
+    std::fill(last[j].begin(), last[j].end(), kNone);
+    for (std::size_t p = cut[j]; p < cut[j + 1]; ++p) {
+      const std::uint32_t i = byTriangle[p], c = labels[i], t = wrapped_[i];
+      if (last[j][c] == t) continue;
+      last[j][c] = t;
+      set.triangles[fill[c]++] = t;
+    }
+  });
+  last.clear();
+  count.clear();
+  std::vector<std::uint32_t>().swap(byTriangle);
+
+  // Radius: reach every vertex of every wrapped triangle (the coverage invariant). The list entries are
+  // split among the threads; a cluster's squared radius is the largest over its parts (exact, so the same).
+  const std::size_t entries = set.triangles.size();
+  std::vector<std::pair<std::uint32_t, double>> shared(threads, {kNone, 0.0});  // a cluster begun in an earlier part
+  detail::runParallel(threads, [&](unsigned j) {
+    const std::size_t lo = entries * j / threads, hi = entries * (j + 1) / threads;
+    if (lo == hi) return;
+    std::uint32_t c = static_cast<std::uint32_t>(std::upper_bound(set.offsets.begin(), set.offsets.end(), lo) -
+                                                 set.offsets.begin() - 1);
+    for (; c < k && set.offsets[c] < hi; ++c) {
+      double r2 = 0.0;
+      const std::size_t end = std::min<std::size_t>(hi, set.offsets[c + 1]);
+      for (std::size_t e = std::max<std::size_t>(lo, set.offsets[c]); e < end; ++e)
+        for (int v = 0; v < 3; ++v)
+          r2 = std::max(r2, (mesh.vertex(set.triangles[e], v) - set.centres[c]).squaredNorm());
+      if (set.offsets[c] < lo)
+        shared[j] = {c, r2};
+      else
+        set.radii[c] = r2;
+    }
+  });
+  for (const auto& [c, r2] : shared)
+    if (c != kNone) set.radii[c] = std::max(set.radii[c], r2);
+  for (double& r : set.radii) r = std::sqrt(r);
 
   BuildStats& st = set.stats;
   st.triangles = mesh.size();

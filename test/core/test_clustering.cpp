@@ -73,8 +73,8 @@ std::vector<Vec3> clusteredPoints(std::mt19937_64& rng, std::size_t n, std::size
   return pts;
 }
 
-void expectSameAsNaive(const std::vector<Vec3>& pts, double d, const std::string& what) {
-  SingleLinkClustering clustering;
+void expectSameAsNaive(const std::vector<Vec3>& pts, double d, const std::string& what, unsigned threads = 0) {
+  SingleLinkClustering clustering(threads);
   std::vector<std::uint32_t> labels;
   const std::uint32_t k = clustering.cluster(pts, d, labels);
   ASSERT_EQ(labels.size(), pts.size()) << what;
@@ -197,6 +197,21 @@ TEST(SingleLinkClustering, EqualsNaiveWithManyMoreCellsThanTheTableStartsWith) {
   auto pts = uniformPoints(rng, 5000, 1.0, Vec3::Constant(-0.5));
   pts.insert(pts.end(), pts.begin() + 1000, pts.begin() + 1400);
   for (double d : {1e-9, 2e-3, 0.02}) expectSameAsNaive(pts, d, "many cells");
+}
+
+TEST(SingleLinkClustering, EqualsNaiveOnTwoThreads) {
+  // Enough points for two threads (kMinPointsPerThread each), asked for explicitly so that the split
+  // passes and the shared union-find run whatever the hardware: blobs with exact duplicates across the
+  // two halves of the points, at distances where neighbours are found by the sorted sweep (0.004,
+  // 0.012) and by hashing (1e-9: too many cells per axis to pack), then far from the origin, where
+  // rounding leaves loose points in cells.
+  std::mt19937_64 rng(500);
+  const std::size_t n = 2 * SingleLinkClustering::kMinPointsPerThread + 2500;
+  auto blobs = clusteredPoints(rng, n, 40, 0.01);
+  blobs.insert(blobs.end(), blobs.begin(), blobs.begin() + 800);
+  for (double d : {1e-9, 0.004, 0.012}) expectSameAsNaive(blobs, d, "two threads, blobs", 2);
+  const auto far = uniformPoints(rng, n, 1e-6, Vec3::Constant(1e6));
+  expectSameAsNaive(far, 0.05e-6, "two threads, far from the origin", 2);
 }
 
 // The cube rule read literally, written here: the cube index of each point along each axis from the

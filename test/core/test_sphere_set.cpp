@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -100,6 +101,45 @@ TEST(ClodSphereSet, CentreIsMeanOfMembersAndRadiusIsTight) {
     for (const std::uint32_t* t = set.begin(c); t != set.end(c); ++t)
       for (int v = 0; v < 3; ++v) far = std::max(far, (mesh->vertex(*t, v) - set.centres[c]).norm());
     EXPECT_NEAR(set.radii[c], far, 1e-12) << "cluster " << c;
+  }
+}
+
+TEST(ClodSphereSet, LargeBuildEqualsItsDefinitionWrittenOut) {
+  // mannequin-devil's ~50k centres take the builder's multi-threaded passes (on hardware with two or more
+  // threads). Written out here from the placed spheres and the clustering's labels: each list is the
+  // sorted unique triangles of the members, each centre the members' sum in point order over their
+  // count, each radius the farthest listed vertex; the builder must give exactly these values.
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("mannequin-devil.off"));
+  const ClodBuilder builder(mesh);
+  const auto placed = builder.placed();
+  ASSERT_GT(placed.size(), 40000u);
+  std::vector<Vec3> centres;
+  for (const auto& s : placed) centres.push_back(s.centre);
+  for (double d : {0.0, 0.03}) {
+    SCOPED_TRACE("d=" + std::to_string(d));
+    const ClodSphereSet set = builder.build(d);
+    std::vector<std::uint32_t> labels;
+    const std::uint32_t k = SingleLinkClustering(1).cluster(centres, d, labels);
+    ASSERT_EQ(k, set.size());
+    std::vector<Vec3> sum(k, Vec3::Zero());
+    std::vector<int> count(k, 0);
+    std::vector<std::vector<std::uint32_t>> lists(k);
+    for (std::size_t i = 0; i < centres.size(); ++i) {
+      sum[labels[i]] += centres[i];
+      ++count[labels[i]];
+      lists[labels[i]].push_back(placed[i].triangle);
+    }
+    for (std::uint32_t c = 0; c < k; ++c) {
+      std::sort(lists[c].begin(), lists[c].end());
+      lists[c].erase(std::unique(lists[c].begin(), lists[c].end()), lists[c].end());
+      ASSERT_EQ(std::vector<std::uint32_t>(set.begin(c), set.end(c)), lists[c]) << "cluster " << c;
+      const Vec3 mean = sum[c] / count[c];
+      ASSERT_EQ(set.centres[c], mean) << "cluster " << c;
+      double far2 = 0;
+      for (const std::uint32_t t : lists[c])
+        for (int v = 0; v < 3; ++v) far2 = std::max(far2, (mesh->vertex(t, v) - mean).squaredNorm());
+      ASSERT_EQ(set.radii[c], std::sqrt(far2)) << "cluster " << c;
+    }
   }
 }
 

@@ -41,11 +41,23 @@ class Clustering {
  * less than d are in one cluster, and clusters are closed under that relation (chains merge).
  * Euclidean rather than the cube's Chebyshev distance, so the result does not depend on how the
  * model is rotated. d = 0 keeps every centre apart. Expected O(n): a hash grid of cell size d
- * (never finer than 1e-12 of the point cloud's extent) and union-find over neighbouring cells.
+ * (never finer than 1e-12 of the point cloud's extent) and union-find over neighbouring cells, on several
+ * threads for a large input (the same result as on one).
  */
 class SingleLinkClustering : public Clustering {
  public:
+  /**
+   * \brief threads: how many threads a large clustering uses (0 = the hardware's concurrency); inputs under
+   * kMinPointsPerThread points per thread use fewer. The result does not depend on it.
+   */
+  explicit SingleLinkClustering(unsigned threads = 0) : threads_(threads) {}
   std::uint32_t cluster(const std::vector<Vec3>& points, double d, std::vector<std::uint32_t>& labels) const override;
+
+  /** \brief Points per thread below which a thread is not worth starting. */
+  static constexpr std::size_t kMinPointsPerThread = 8192;
+
+ private:
+  unsigned threads_;
 };
 
 /**
