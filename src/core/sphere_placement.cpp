@@ -39,6 +39,9 @@ struct Hit {
   double dot;
 };
 
+// Hits a ray keeps for its final choice; past that the hits are enumerated again.
+constexpr int kKeep = 64;
+
 }  // namespace
 
 PlacedCentres SpherePlacement::placeCentres(const TriangleMesh& mesh, PlacementStats* stats) const {
@@ -68,86 +71,110 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
 
   std::vector<std::uint32_t> opposite(n, std::numeric_limits<std::uint32_t>::max());
   std::vector<std::uint16_t> steps(n, 0);
+  // One ray per triangle, from its centroid along the inward normal. With m the smallest dot seen so
+  // far and k its step, a subtree matters only if its normals can reach below tau_{k-1} (a lower
+  // step) or below tau_k nearer than the best hit at step k; the origin's neighbourhood, visited last,
+  // mostly faces along the normal and is skipped. Skipping is exact in any visiting order (k only
+  // falls and the best distance only shrinks), so the rays go in packets of neighbours.
+  struct Ray {
+    std::uint32_t triangle;
+    Vec3 normal;
+    double minDot;
+    int k;  // step of minDot; -1 before the first hit
+    double bestT;
+    int seen;
+    Hit kept[kKeep];
+    void rebest() {
+      const double tau = kTau0 + kTauStep * k;
+      bestT = std::numeric_limits<double>::infinity();
+      for (int h = 0; h < std::min(seen, kKeep); ++h)
+        if (kept[h].dot < tau) bestT = std::min(bestT, kept[h].t);
+    }
+  };
   std::atomic<std::size_t> next{0};
   auto worker = [&](bool reporter) {
     constexpr std::size_t kChunk = 256;
+    constexpr int W = TriangleBvh::kPacket;
+    Ray rays[W];
+    Vec3 origins[W], dirs[W];
+    auto hit = [&](int r, std::uint32_t tri, double dist) {
+      Ray& ray = rays[r];
+      if (tri == ray.triangle || dist <= minT) return;
+      const double dot = mesh.normals[tri].dot(ray.normal);
+      if (ray.seen < kKeep) ray.kept[ray.seen] = {tri, dist, dot};
+      ++ray.seen;
+      if (dot < ray.minDot) {
+        ray.minDot = dot;
+        const int step = firstAdmittingStep(dot);
+        if (step != ray.k) {
+          ray.k = step;
+          ray.rebest();
+          return;
+        }
+      }
+      if (ray.k >= 0 && dot < kTau0 + kTauStep * ray.k) ray.bestT = std::min(ray.bestT, dist);
+    };
+    auto keep = [&](int r, const TriangleBvh::Node& node, double entry) {
+      const Ray& ray = rays[r];
+      if (ray.k < 0 || ray.seen > kKeep) return true;  // nothing to compare with yet, or the buffer overflowed
+      const double lower = TriangleBvh::minDot(node, ray.normal) - 1e-9;
+      if (ray.k >= 1 && lower < kTau0 + kTauStep * (ray.k - 1)) return true;
+      return lower < kTau0 + kTauStep * ray.k && entry <= ray.bestT;
+    };
+    // The answer of a walked ray: the nearest hit with dot < tau_k (lowest index on ties).
+    auto finish = [&](int r) {
+      const Ray& ray = rays[r];
+      const std::uint32_t t = ray.triangle;
+      if (ray.seen == 0) return;  // the ray escapes: no opposite triangle
+      std::uint32_t best = std::numeric_limits<std::uint32_t>::max();
+      const double tau = kTau0 + kTauStep * ray.k;
+      double bestT = std::numeric_limits<double>::infinity();
+      auto consider = [&](std::uint32_t tri, double dist, double dot) {
+        if (dot < tau && (dist < bestT || (dist == bestT && tri < best))) {
+          bestT = dist;
+          best = tri;
+        }
+      };
+      if (ray.seen <= kKeep) {
+        for (int h = 0; h < ray.seen; ++h) consider(ray.kept[h].triangle, ray.kept[h].t, ray.kept[h].dot);
+      } else {
+        // More hits than the buffer holds (pruning was off after it overflowed, so minDot and k
+        // are over every hit): enumerate the hits again.
+        double all = std::numeric_limits<double>::infinity();
+        bvh.forEachRayHit(origins[r], dirs[r], all, [&](std::uint32_t tri, double dist) {
+          if (tri == t || dist <= minT) return;
+          consider(tri, dist, mesh.normals[tri].dot(ray.normal));
+        });
+      }
+      opposite[t] = best;
+      steps[t] = static_cast<std::uint16_t>(std::min(ray.k, 65535));
+    };
     for (;;) {
       const std::size_t begin = next.fetch_add(kChunk);
       if (begin >= n) return;
       if (reporter && progress_) progress_(static_cast<double>(begin) / static_cast<double>(n));
       const std::size_t end = std::min(n, begin + kChunk);
       // Rays in the hierarchy's leaf order: consecutive rays start close together and walk mostly the
-      // same nodes, which stay in cache.
-      for (std::size_t j = begin; j < end; ++j) {
-        const std::uint32_t t = bvh.order()[j];
-        const Vec3& normal = mesh.normals[t];
-        if (normal.isZero(0.0)) continue;
-        const Vec3 origin = mesh.centroid(t);
-        const Vec3 dir = -normal;
-        // One pass (the far side first, see forEachRayHit) that skips every subtree unable to change
-        // the answer. With m the smallest dot seen so far and k its step, a subtree matters only if its
-        // normals can reach below tau_{k-1} (a lower step) or below tau_k nearer than the best hit at
-        // step k; the origin's neighbourhood, visited last, mostly faces along the normal and is skipped.
-        double minDot = std::numeric_limits<double>::infinity();
-        int k = -1;  // step of minDot; -1 before the first hit
-        double bestT = std::numeric_limits<double>::infinity();
-        constexpr int kKeep = 64;
-        Hit kept[kKeep];
-        int seen = 0;
-        double tMax = std::numeric_limits<double>::infinity();
-        auto rebest = [&]() {
-          const double tau = kTau0 + kTauStep * k;
-          bestT = std::numeric_limits<double>::infinity();
-          for (int h = 0; h < std::min(seen, kKeep); ++h)
-            if (kept[h].dot < tau) bestT = std::min(bestT, kept[h].t);
-        };
-        bvh.forEachRayHit(
-            origin, dir, tMax,
-            [&](std::uint32_t tri, double dist) {
-              if (tri == t || dist <= minT) return;
-              const double dot = mesh.normals[tri].dot(normal);
-              if (seen < kKeep) kept[seen] = {tri, dist, dot};
-              ++seen;
-              if (dot < minDot) {
-                minDot = dot;
-                const int step = firstAdmittingStep(minDot);
-                if (step != k) {
-                  k = step;
-                  rebest();
-                  return;
-                }
-              }
-              if (k >= 0 && dot < kTau0 + kTauStep * k) bestT = std::min(bestT, dist);
-            },
-            [&](const TriangleBvh::Node& node, double entry) {
-              if (k < 0 || seen > kKeep) return true;  // nothing to compare with yet, or the buffer overflowed
-              const double lower = TriangleBvh::minDot(node, normal) - 1e-9;
-              if (k >= 1 && lower < kTau0 + kTauStep * (k - 1)) return true;
-              return lower < kTau0 + kTauStep * k && entry <= bestT;
-            });
-        if (seen == 0) continue;  // the ray escapes: no opposite triangle
-        std::uint32_t best = std::numeric_limits<std::uint32_t>::max();
-        const double tau = kTau0 + kTauStep * k;
-        bestT = std::numeric_limits<double>::infinity();
-        auto consider = [&](std::uint32_t tri, double dist, double dot) {
-          if (dot < tau && (dist < bestT || (dist == bestT && tri < best))) {
-            bestT = dist;
-            best = tri;
-          }
-        };
-        if (seen <= kKeep) {
-          for (int h = 0; h < seen; ++h) consider(kept[h].triangle, kept[h].t, kept[h].dot);
-        } else {
-          // More hits than the buffer holds (pruning was off after it overflowed, so minDot and k
-          // are over every hit): enumerate the hits again.
-          double all = std::numeric_limits<double>::infinity();
-          bvh.forEachRayHit(origin, dir, all, [&](std::uint32_t tri, double dist) {
-            if (tri == t || dist <= minT) return;
-            consider(tri, dist, mesh.normals[tri].dot(normal));
-          });
+      // same nodes, so a packet of them walks each shared node once.
+      for (std::size_t j = begin; j < end;) {
+        int count = 0;
+        for (; j < end && count < W; ++j) {
+          const std::uint32_t t = bvh.order()[j];
+          const Vec3& normal = mesh.normals[t];
+          if (normal.isZero(0.0)) continue;
+          Ray& ray = rays[count];
+          ray.triangle = t;
+          ray.normal = normal;
+          ray.minDot = std::numeric_limits<double>::infinity();
+          ray.k = -1;
+          ray.bestT = std::numeric_limits<double>::infinity();
+          ray.seen = 0;
+          origins[count] = mesh.centroid(t);
+          dirs[count] = -normal;
+          ++count;
         }
-        opposite[t] = best;
-        steps[t] = static_cast<std::uint16_t>(std::min(k, 65535));
+        bvh.forEachPacketHit(origins, dirs, count, hit, keep);
+        for (int r = 0; r < count; ++r) finish(r);
       }
     }
   };

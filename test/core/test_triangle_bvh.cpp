@@ -142,4 +142,76 @@ TEST(TriangleBvh, ShrinkingTMaxPrunesFartherHits) {
   EXPECT_GT(rays, 100u);
 }
 
+// Packets of rays: each ray gets exactly its own brute-force hits, and a per-ray keep() that prunes
+// by entry distance still leaves every hit nearer than that ray's limit (a keep answered for the
+// wrong ray would lose some). Coherent packets (neighbouring triangles' inward normals, as the
+// placement casts them) and incoherent ones (random rays), of every size up to kPacket.
+void checkPackets(const TriangleMesh& mesh, int packets, std::uint64_t seed) {
+  const TriangleBvh bvh(mesh, 4, 2);
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0, 1);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const auto randomOrigins = uniformProbes(mesh, packets * TriangleBvh::kPacket, 0.1 * mesh.diagonal(), seed);
+  std::size_t total = 0, pruned = 0;
+  for (int p = 0; p < packets; ++p) {
+    const int count = 1 + p % TriangleBvh::kPacket;
+    const bool coherent = p % 3 != 2;
+    Vec3 origins[TriangleBvh::kPacket], dirs[TriangleBvh::kPacket];
+    double limit[TriangleBvh::kPacket];
+    const std::size_t start = (std::size_t(p) * 37) % mesh.size();
+    for (int r = 0; r < count; ++r) {
+      const std::uint32_t t = bvh.order()[(start + r) % mesh.size()];
+      if (coherent && !mesh.normals[t].isZero(0.0)) {
+        origins[r] = mesh.centroid(t);
+        dirs[r] = -mesh.normals[t];
+      } else {
+        origins[r] = randomOrigins[std::size_t(p) * TriangleBvh::kPacket + r];
+        dirs[r] = Vec3(g(rng), g(rng), g(rng));
+      }
+      limit[r] = p % 2 ? std::numeric_limits<double>::infinity() : u(rng) * mesh.diagonal();
+    }
+    std::vector<std::map<std::uint32_t, double>> got(count);
+    bvh.forEachPacketHit(
+        origins, dirs, count,
+        [&](int r, std::uint32_t t, double dist) {
+          ASSERT_GE(r, 0);
+          ASSERT_LT(r, count);
+          EXPECT_EQ(got[r].count(t), 0u) << "triangle reported twice";
+          got[r][t] = dist;
+        },
+        [&](int r, const TriangleBvh::Node&, double entry) { return entry <= limit[r]; });
+    for (int r = 0; r < count; ++r) {
+      std::size_t within = 0;
+      for (std::size_t t = 0; t < mesh.size(); ++t) {
+        double dist;
+        const bool hits = rayTriangle(origins[r], dirs[r], mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), dist);
+        const auto it = got[r].find(std::uint32_t(t));
+        if (!hits) {
+          ASSERT_TRUE(it == got[r].end()) << "packet " << p << " ray " << r << ": triangle " << t << " is no hit";
+          continue;
+        }
+        if (it != got[r].end()) {
+          ASSERT_EQ(it->second, dist) << "packet " << p << " ray " << r;
+        }
+        if (dist <= limit[r]) {
+          ++within;
+          ASSERT_TRUE(it != got[r].end()) << "packet " << p << " ray " << r << ": hit on " << t << " at " << dist
+                                          << " within the limit " << limit[r] << " missed";
+        } else if (it == got[r].end()) {
+          ++pruned;
+        }
+      }
+      total += within;
+    }
+  }
+  EXPECT_GT(total, std::size_t(packets)) << "the rays must hit something";
+  EXPECT_GT(pruned, 0u) << "the limits must prune something, or the keep() test proves nothing";
+}
+
+TEST(TriangleBvh, PacketsGetEveryHitOfEachRay) {
+  checkPackets(*clod_test::loadNormalized(clod_test::sharedMesh("head.off")), 300, 11);
+  checkPackets(*clod_test::loadNormalized(clod_test::sharedMesh("elephant.off")), 200, 12);
+  checkPackets(loadMesh(clod_test::testData("cube.obj")), 100, 13);
+}
+
 }  // namespace

@@ -3,7 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "clod_haptics/core/geometry.h"
 #include "clod_haptics/core/mesh.h"
@@ -53,6 +58,20 @@ class TriangleBvh {
    */
   template <class Hit, class Keep>
   void forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMax, Hit&& hit, Keep&& keep) const;
+
+  /** \brief The most rays forEachPacketHit takes at once. */
+  static constexpr int kPacket = 16;
+
+  /**
+   * \brief forEachRayHit with keep for up to kPacket rays at once, without a distance limit: one walk
+   * down the hierarchy for all of them, each node's children tested against every ray still in it.
+   * Meant for rays that start close together and point alike (the placement's neighbouring rays
+   * share most of their nodes). Calls hit(r, triangle, t) and keep(r, node, tEntry) with r the
+   * ray's index; each ray gets exactly the hits forEachRayHit gives it alone, in an order that may
+   * differ. Allocates nothing.
+   */
+  template <class Hit, class Keep>
+  void forEachPacketHit(const Vec3* origins, const Vec3* dirs, int count, Hit&& hit, Keep&& keep) const;
 
   /** \brief Lower bound of n . m over the unit normals n of a node's triangles. */
   static double minDot(const Node& node, const Vec3& m) {
@@ -132,6 +151,114 @@ void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMa
         if (tr < 1e308) stack[top++] = {right, tr};
       }
     }
+  }
+}
+
+template <class Hit, class Keep>
+void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int count, Hit&& hit, Keep&& keep) const {
+  constexpr int W = kPacket;
+  static_assert(W % 2 == 0 && W < 32, "rays go two per register, and a mask bit each");
+  if (nodes_.empty() || count <= 0) return;
+  count = std::min(count, W);
+  // Per axis and ray (rays past count copy the first and stay masked out); a zero direction
+  // component becomes a tiny one of the same sign, as in forEachRayHit.
+  double o[3][W], inv[3][W];
+  for (int r = 0; r < W; ++r)
+    for (int k = 0; k < 3; ++k) {
+      const int s = r < count ? r : 0;
+      const double d = dirs[s][k] != 0.0 ? dirs[s][k] : std::copysign(1e-300, dirs[s][k]);
+      inv[k][r] = 1.0 / d;
+      o[k][r] = origins[s][k];
+    }
+  // Entry distance of every ray into a node's box and the mask of the rays that meet it: the same
+  // values as forEachRayHit's test (the near slab is the smaller product, there being no NaN), two
+  // rays per SSE2 register. Every lane is computed: skipping the lanes of rays that left the node
+  // costs more in branches than it saves.
+#if defined(__SSE2__)
+  __m128d oV[3][W / 2], invV[3][W / 2];
+  for (int k = 0; k < 3; ++k)
+    for (int h = 0; h < W / 2; ++h) {
+      oV[k][h] = _mm_set_pd(o[k][2 * h + 1], o[k][2 * h]);
+      invV[k][h] = _mm_set_pd(inv[k][2 * h + 1], inv[k][2 * h]);
+    }
+#endif
+  auto enter = [&](const Node& node, double* entry) {
+    unsigned mask = 0;
+#if defined(__SSE2__)
+    for (int h = 0; h < W / 2; ++h) {
+      __m128d t0 = _mm_setzero_pd(), t1 = _mm_set1_pd(std::numeric_limits<double>::infinity());
+      for (int k = 0; k < 3; ++k) {
+        const __m128d a = _mm_mul_pd(_mm_sub_pd(_mm_set1_pd(node.lo[k]), oV[k][h]), invV[k][h]);
+        const __m128d b = _mm_mul_pd(_mm_sub_pd(_mm_set1_pd(node.hi[k]), oV[k][h]), invV[k][h]);
+        t0 = _mm_max_pd(_mm_min_pd(a, b), t0);
+        t1 = _mm_min_pd(_mm_max_pd(a, b), t1);
+      }
+      _mm_storeu_pd(entry + 2 * h, t0);
+      mask |= static_cast<unsigned>(_mm_movemask_pd(_mm_cmple_pd(t0, t1))) << (2 * h);
+    }
+#else
+    for (int r = 0; r < W; ++r) {
+      double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
+      for (int k = 0; k < 3; ++k) {
+        const double a = (node.lo[k] - o[k][r]) * inv[k][r], b = (node.hi[k] - o[k][r]) * inv[k][r];
+        t0 = std::max(std::min(a, b), t0);
+        t1 = std::min(std::max(a, b), t1);
+      }
+      entry[r] = t0;
+      mask |= static_cast<unsigned>(t0 <= t1) << r;
+    }
+#endif
+    return mask;
+  };
+  struct Item {
+    std::uint32_t node;
+    unsigned mask;
+    double t[W];
+  };
+  Item stack[128];  // at most one pending entry per level, as in forEachRayHit
+  int top = 0;
+  stack[0].node = 0;
+  stack[0].mask = enter(nodes_[0], stack[0].t) & ((1u << count) - 1);
+  std::fill(stack[0].t, stack[0].t + W, 0.0);
+  if (stack[0].mask) top = 1;
+  while (top > 0) {
+    const Item item = stack[--top];  // a copy: reading the slot in place while pushing is slower
+    const Node& node = nodes_[item.node];
+    unsigned mask = 0;
+    for (unsigned m = item.mask; m; m &= m - 1) {
+      const int r = __builtin_ctz(m);
+      if (keep(r, node, item.t[r])) mask |= 1u << r;
+    }
+    if (mask == 0) continue;
+    if (node.count > 0) {
+      for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
+        const std::uint32_t tri = order_[i];
+        const Vec3 &a = mesh_.vertex(tri, 0), &b = mesh_.vertex(tri, 1), &c = mesh_.vertex(tri, 2);
+        for (unsigned m = mask; m; m &= m - 1) {
+          const int r = __builtin_ctz(m);
+          double t;
+          if (rayTriangle(origins[r], dirs[r], a, b, c, t)) hit(r, tri, t);
+        }
+      }
+      continue;
+    }
+    Item l, r;
+    l.node = item.node + 1;
+    r.node = node.first;
+    l.mask = enter(nodes_[l.node], l.t) & mask;
+    r.mask = enter(nodes_[r.node], r.t) & mask;
+    // The order forEachRayHit takes for the first ray that meets both children (nearer first, a child
+    // containing the origin last); the other rays follow it.
+    bool leftFirst = true;
+    if (const unsigned both = l.mask & r.mask) {
+      const int q = __builtin_ctz(both);
+      const double tl = l.t[q], tr = r.t[q];
+      leftFirst = (tl == 0.0) == (tr == 0.0) ? tl <= tr : tr == 0.0;
+    }
+    const Item& first = leftFirst ? l : r;
+    const Item& second = leftFirst ? r : l;
+    if (second.mask) stack[top++] = second;
+    if (first.mask) stack[top++] = first;
   }
 }
 
