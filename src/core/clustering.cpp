@@ -121,11 +121,17 @@ std::size_t prepare(const std::vector<Vec3>& points, double d, std::vector<std::
   return points.size();
 }
 
-// Integer cell of p for cells of side cell anchored at origin.
+// floor(q) for |q| < 2^63, inline (std::floor is a library call on baseline x86-64).
+std::int64_t floorToInt(double q) {
+  const std::int64_t i = static_cast<std::int64_t>(q);  // rounds toward zero
+  return i - (q < static_cast<double>(i));
+}
+
+// Integer cell of p for cells of side cell anchored at origin (coordinates at most ~1e12 cells: the cell
+// is never finer than 1e-12 of the extent).
 CellKey cellOf(const Vec3& p, const Vec3& origin, double cell) {
   const Vec3 q = (p - origin) / cell;
-  return {static_cast<std::int64_t>(std::floor(q.x())), static_cast<std::int64_t>(std::floor(q.y())),
-          static_cast<std::int64_t>(std::floor(q.z()))};
+  return {floorToInt(q.x()), floorToInt(q.y()), floorToInt(q.z())};
 }
 
 // Unites every pair of points closer than d (Euclidean, strict), touching each pair of cells once.
@@ -211,7 +217,7 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
     const CellKey& k = table.key(static_cast<std::uint32_t>(c));
     packable = k.x < kLimit && k.y < kLimit && k.z < kLimit;
   }
-  std::vector<std::uint32_t> number(cells);  // table's cell -> the cell's number below
+  std::vector<std::uint32_t> number(cells);  // table's cell -> the cell's number below (while bucketing)
   std::vector<std::uint64_t> packed;         // by number, when packable
   if (packable) {
     std::vector<std::pair<std::uint64_t, std::uint32_t>> order(cells);  // (packed coordinates, table's cell)
@@ -263,6 +269,16 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
   }
   counts.clear();
   global.clear();
+  std::vector<std::uint32_t>().swap(number);
+  // With the sorted coordinates, cells are found by binary search: the table's memory is not needed.
+  if (packable) table = CellTable(0);
+  auto findCell = [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+    if (!packable) return table.find({x, y, z});  // numbers are the table's
+    if (x < 0 || y < 0 || z < 0 || x >= kLimit || y >= kLimit || z >= kLimit) return CellTable::kNone;
+    const std::uint64_t key = pack(x, y, z);
+    const auto it = std::lower_bound(packed.begin(), packed.end(), key);
+    return it != packed.end() && *it == key ? static_cast<std::uint32_t>(it - packed.begin()) : CellTable::kNone;
+  };
 
   const double d2 = d * d;
   // d * d underflows for d below ~1e-154 (and overflows above ~1e154): compare overflow-safe norms there.
@@ -281,7 +297,10 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
   std::vector<unsigned char> loose(n, 0);
   std::vector<std::vector<std::uint32_t>> looseLists(threads);
   std::vector<Eigen::AlignedBox3d> cellBox(cells);
-  std::vector<std::array<std::uint32_t, 6>> extremes(cells);
+  // (Only with several points per cell on average: with one or two, a full scan costs no more.)
+  const bool useExtremes = cells * 8 <= n;
+  std::vector<std::array<std::uint32_t, 6>> extremes(useExtremes ? cells : 0);
+  constexpr std::size_t kAhead = 16;
   detail::runParallel(threads, [&](unsigned t) {
     for (std::size_t c = cellCut[t]; c < cellCut[t + 1]; ++c) {
       const std::uint32_t first = sorted[runStart[c]];
@@ -293,6 +312,7 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
       uf.set(first, first);
       for (std::size_t j = runStart[c] + 1; j < runStart[c + 1]; ++j) {
         const std::uint32_t i = sorted[j];
+        if (j + kAhead < n) __builtin_prefetch(&points[sorted[j + kAhead]]);  // the loads are scattered
         const Vec3& q = points[i];
         bounds.extend(q);
         if (close(p, q)) {
@@ -308,7 +328,7 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
         }
       }
       cellBox[c] = bounds;
-      extremes[c] = extreme;
+      if (useExtremes) extremes[c] = extreme;
     }
   });
 
@@ -328,12 +348,13 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
     // Two cells whose bounds are d or more apart hold no close pair (no squared test when extreme).
     if (!extreme && gap2(boxA.min(), boxA.max(), boxB) >= farGap2) return;
     if (cellUf.find(c) == cellUf.find(c2)) return;
-    for (const std::uint32_t i : extremes[c])
-      for (const std::uint32_t j : extremes[c2])
-        if (close(points[i], points[j])) {
-          cellUf.unite(c, c2);
-          return;
-        }
+    if (useExtremes)
+      for (const std::uint32_t i : extremes[c])
+        for (const std::uint32_t j : extremes[c2])
+          if (close(points[i], points[j])) {
+            cellUf.unite(c, c2);
+            return;
+          }
     // A point d or more away from the other cell's bounds has no partner there.
     nearB.clear();
     for (std::size_t b = runStart[c2]; b < runStart[c2 + 1]; ++b) {
@@ -408,7 +429,7 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
           for (int dx = 0; dx <= reach; ++dx)
             for (int dy = (dx == 0 ? 0 : -reach); dy <= reach; ++dy)
               for (int dz = (dx == 0 && dy == 0 ? 1 : -reach); dz <= reach; ++dz) {
-                const std::uint32_t c2 = table.find({k.x + dx, k.y + dy, k.z + dz});
+                const std::uint32_t c2 = findCell(k.x + dx, k.y + dy, k.z + dz);
                 if (c2 != CellTable::kNone) linkCells(static_cast<std::uint32_t>(c), c2, nearB);
               }
         }
@@ -433,9 +454,8 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
       for (int dx = -reach; dx <= reach; ++dx)
         for (int dy = -reach; dy <= reach; ++dy)
           for (int dz = -reach; dz <= reach; ++dz) {
-            const std::uint32_t found = table.find({k.x + dx, k.y + dy, k.z + dz});
-            if (found == CellTable::kNone) continue;
-            const std::uint32_t c2 = number[found];
+            const std::uint32_t c2 = findCell(k.x + dx, k.y + dy, k.z + dz);
+            if (c2 == CellTable::kNone) continue;
             for (std::size_t b = runStart[c2]; b < runStart[c2 + 1]; ++b)
               if (sorted[b] != i && close(points[i], points[sorted[b]])) uf.unite(i, sorted[b]);
           }

@@ -115,6 +115,7 @@ ClodSphereSet ClodBuilder::build(double d) const {
     cut[j] = at;
   }
   std::vector<std::vector<std::uint32_t>> last(parts), count(parts);  // per part and cluster
+
   detail::runParallel(parts, [&](unsigned j) {
     last[j].assign(k, kNone);  // the last triangle appended to each cluster
     count[j].assign(k, 0);
@@ -152,6 +153,7 @@ ClodSphereSet ClodBuilder::build(double d) const {
   // Radius: reach every vertex of every wrapped triangle (the coverage invariant). The list entries are
   // split among the threads; a cluster's squared radius is the largest over its parts (exact, so the same).
   const std::size_t entries = set.triangles.size();
+  constexpr std::size_t kAhead = 16;
   std::vector<std::pair<std::uint32_t, double>> shared(threads, {kNone, 0.0});  // a cluster begun in an earlier part
   detail::runParallel(threads, [&](unsigned j) {
     const std::size_t lo = entries * j / threads, hi = entries * (j + 1) / threads;
@@ -161,9 +163,14 @@ ClodSphereSet ClodBuilder::build(double d) const {
     for (; c < k && set.offsets[c] < hi; ++c) {
       double r2 = 0.0;
       const std::size_t end = std::min<std::size_t>(hi, set.offsets[c + 1]);
-      for (std::size_t e = std::max<std::size_t>(lo, set.offsets[c]); e < end; ++e)
+      for (std::size_t e = std::max<std::size_t>(lo, set.offsets[c]); e < end; ++e) {
+        // The triangles are scattered loads, their vertices more so: start both early.
+        if (e + 2 * kAhead < entries) __builtin_prefetch(&mesh.triangles[set.triangles[e + 2 * kAhead]]);
+        if (e + kAhead < entries)
+          for (int v = 0; v < 3; ++v) __builtin_prefetch(&mesh.vertex(set.triangles[e + kAhead], v));
         for (int v = 0; v < 3; ++v)
           r2 = std::max(r2, (mesh.vertex(set.triangles[e], v) - set.centres[c]).squaredNorm());
+      }
       if (set.offsets[c] < lo)
         shared[j] = {c, r2};
       else

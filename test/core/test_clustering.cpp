@@ -203,8 +203,8 @@ TEST(SingleLinkClustering, EqualsNaiveOnTwoThreads) {
   // Enough points for two threads (kMinPointsPerThread each), asked for explicitly so that the split
   // passes and the shared union-find run whatever the hardware: blobs with exact duplicates across the
   // two halves of the points, at distances where neighbours are found by the sorted sweep (0.004,
-  // 0.012) and by hashing (1e-9: too many cells per axis to pack), then far from the origin, where
-  // rounding leaves loose points in cells.
+  // 0.012) and by hashing (1e-9: too many cells per axis to pack), then far from the origin, where cells
+  // cannot be finer than 1e-12 of the extent and nearly every point is loose (tested one by one).
   std::mt19937_64 rng(500);
   const std::size_t n = 2 * SingleLinkClustering::kMinPointsPerThread + 2500;
   auto blobs = clusteredPoints(rng, n, 40, 0.01);
