@@ -89,13 +89,15 @@ ClodSphereSet ClodBuilder::build(double d) const {
   // ascending order of the triangle they wrap (a counting sort over the triangles), so appending each
   // to its cluster keeps every list ascending, and a duplicate is always the list's last entry. One
   // pass counts, one fills the exactly sized array.
+  const std::size_t triangles = mesh.size();
   std::vector<std::uint32_t> byTriangle(points);
+  std::vector<std::uint32_t> ends(triangles + 1, 0);  // ends[t]: one past triangle t's points in byTriangle
   auto sortByTriangle = [&] {
-    std::vector<std::uint32_t> next(mesh.size() + 1, 0);
-    for (std::size_t i = 0; i < points; ++i) ++next[wrapped_[i] + 1];
-    for (std::size_t t = 0; t < mesh.size(); ++t) next[t + 1] += next[t];
-    for (std::size_t i = 0; i < points; ++i) byTriangle[next[wrapped_[i]]++] = static_cast<std::uint32_t>(i);
+    for (std::size_t i = 0; i < points; ++i) ++ends[wrapped_[i] + 1];
+    for (std::size_t t = 0; t < triangles; ++t) ends[t + 1] += ends[t];
+    for (std::size_t i = 0; i < points; ++i) byTriangle[ends[wrapped_[i]]++] = static_cast<std::uint32_t>(i);
   };
+  auto begins = [&](std::size_t t) { return t == 0 ? std::uint32_t{0} : ends[t - 1]; };
   if (threads > 1) {
     detail::runParallel(2, [&](unsigned t) { t ? sortByTriangle() : means(); });
   } else {
@@ -103,28 +105,25 @@ ClodSphereSet ClodBuilder::build(double d) const {
     sortByTriangle();
   }
 
-  // The lists: the sorted points split among the threads at triangle boundaries (so a duplicate stays
-  // within one part); each part counts and fills its clusters' entries after those of the parts before.
-  // Per thread two arrays of one entry per cluster: only when there are few clusters per point.
+  // The lists: the triangles split among the threads (so a duplicate stays within one part); each part
+  // counts and fills its clusters' entries after those of the parts before. Per thread two arrays of
+  // one entry per cluster: only when there are few clusters per point.
   constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
   const unsigned parts = k <= points / 8 ? threads : 1;
-  std::vector<std::size_t> cut(parts + 1, points);
-  for (unsigned j = 0; j < parts; ++j) {
-    std::size_t at = points * j / parts;
-    while (at > 0 && at < points && wrapped_[byTriangle[at]] == wrapped_[byTriangle[at - 1]]) ++at;
-    cut[j] = at;
-  }
   std::vector<std::vector<std::uint32_t>> last(parts), count(parts);  // per part and cluster
-
+  // Calls add(cluster, triangle) for the points of part j's triangles in ascending triangle order.
+  auto forEachPoint = [&](unsigned j, auto&& add) {
+    for (std::size_t t = triangles * j / parts; t < triangles * (j + 1) / parts; ++t)
+      for (std::uint32_t p = begins(t); p < ends[t]; ++p) add(labels[byTriangle[p]], static_cast<std::uint32_t>(t));
+  };
   detail::runParallel(parts, [&](unsigned j) {
     last[j].assign(k, kNone);  // the last triangle appended to each cluster
     count[j].assign(k, 0);
-    for (std::size_t p = cut[j]; p < cut[j + 1]; ++p) {
-      const std::uint32_t i = byTriangle[p], c = labels[i], t = wrapped_[i];
-      if (last[j][c] == t) continue;
+    forEachPoint(j, [&](std::uint32_t c, std::uint32_t t) {
+      if (last[j][c] == t) return;
       last[j][c] = t;
       ++count[j][c];
-    }
+    });
   });
   for (std::uint32_t c = 0; c < k; ++c) {
     std::uint32_t start = set.offsets[c];
@@ -139,16 +138,16 @@ ClodSphereSet ClodBuilder::build(double d) const {
   detail::runParallel(parts, [&](unsigned j) {
     std::vector<std::uint32_t>& fill = count[j];
     std::fill(last[j].begin(), last[j].end(), kNone);
-    for (std::size_t p = cut[j]; p < cut[j + 1]; ++p) {
-      const std::uint32_t i = byTriangle[p], c = labels[i], t = wrapped_[i];
-      if (last[j][c] == t) continue;
+    forEachPoint(j, [&](std::uint32_t c, std::uint32_t t) {
+      if (last[j][c] == t) return;
       last[j][c] = t;
       set.triangles[fill[c]++] = t;
-    }
+    });
   });
   last.clear();
   count.clear();
   std::vector<std::uint32_t>().swap(byTriangle);
+  std::vector<std::uint32_t>().swap(ends);
 
   // Radius: reach every vertex of every wrapped triangle (the coverage invariant). The list entries are
   // split among the threads; a cluster's squared radius is the largest over its parts (exact, so the same).
