@@ -86,6 +86,11 @@ class TriangleBvh {
   const std::vector<std::uint32_t>& order() const { return order_; }
 
  private:
+  // Whether a walk visits the left child first, given where the ray enters each: the nearer first,
+  // except that a child containing the origin (entered at 0) waits for a sibling the ray reaches
+  // further on.
+  static bool leftFirst(double tl, double tr) { return (tl == 0.0) == (tr == 0.0) ? tl <= tr : tr == 0.0; }
+
   const TriangleMesh& mesh_;
   std::vector<Node> nodes_;
   std::vector<std::uint32_t> order_;
@@ -142,8 +147,7 @@ void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMa
       // sibling the ray reaches further on: a ray cast from a surface point finds the opposite surface
       // first, and a caller's keep() can then prune the origin's own neighbourhood (the placement's
       // rays: about a third fewer nodes and half the triangle tests).
-      const bool leftFirst = (tl == 0.0) == (tr == 0.0) ? tl <= tr : tr == 0.0;
-      if (leftFirst) {
+      if (leftFirst(tl, tr)) {
         if (tr < 1e308) stack[top++] = {right, tr};
         if (tl < 1e308) stack[top++] = {left, tl};
       } else {
@@ -249,14 +253,10 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
     r.mask = enter(nodes_[r.node], r.t) & mask;
     // The order forEachRayHit takes for the first ray that meets both children (nearer first, a child
     // containing the origin last); the other rays follow it.
-    bool leftFirst = true;
-    if (const unsigned both = l.mask & r.mask) {
-      const int q = __builtin_ctz(both);
-      const double tl = l.t[q], tr = r.t[q];
-      leftFirst = (tl == 0.0) == (tr == 0.0) ? tl <= tr : tr == 0.0;
-    }
-    const Item& first = leftFirst ? l : r;
-    const Item& second = leftFirst ? r : l;
+    const unsigned both = l.mask & r.mask;
+    const bool left = both == 0 || leftFirst(l.t[__builtin_ctz(both)], r.t[__builtin_ctz(both)]);
+    const Item& first = left ? l : r;
+    const Item& second = left ? r : l;
     if (second.mask) stack[top++] = second;
     if (first.mask) stack[top++] = first;
   }
