@@ -4,7 +4,9 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <string>
 
@@ -121,17 +123,11 @@ std::size_t prepare(const std::vector<Vec3>& points, double d, std::vector<std::
   return points.size();
 }
 
-// floor(q) for |q| < 2^63, inline (std::floor is a library call on baseline x86-64).
-std::int64_t floorToInt(double q) {
-  const std::int64_t i = static_cast<std::int64_t>(q);  // rounds toward zero
-  return i - (q < static_cast<double>(i));
-}
-
-// Integer cell of p for cells of side cell anchored at origin (coordinates at most ~1e12 cells: the cell
-// is never finer than 1e-12 of the extent).
+// Integer cell of p for cells of side cell anchored at origin.
 CellKey cellOf(const Vec3& p, const Vec3& origin, double cell) {
   const Vec3 q = (p - origin) / cell;
-  return {floorToInt(q.x()), floorToInt(q.y()), floorToInt(q.z())};
+  return {static_cast<std::int64_t>(std::floor(q.x())), static_cast<std::int64_t>(std::floor(q.y())),
+          static_cast<std::int64_t>(std::floor(q.z()))};
 }
 
 // Unites every pair of points closer than d (Euclidean, strict), touching each pair of cells once.
@@ -173,8 +169,8 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
   detail::runParallel(threads, [&](unsigned t) {
     CellTable& table = tables[t];
     std::vector<std::uint32_t>& count = counts[t];
-    // The placement emits its centres in pairs, each of a triangle's neighbourhood: the cells of the
-    // last two points are tried before the table.
+    // The placement emits two centres per triangle in triangle order (one near it, one towards its
+    // opposite), so a centre is usually in the cell of the centre two places back: tried before the table.
     CellKey recent[2] = {{-1, -1, -1}, {-1, -1, -1}};
     std::uint32_t recentCell[2] = {0, 0};
     for (std::size_t i = cut[t]; i < cut[t + 1]; ++i) {
