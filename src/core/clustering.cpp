@@ -285,7 +285,8 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
   // Cells split among the threads at point boundaries: about n / threads points each.
   std::vector<std::size_t> cellCut(threads + 1, cells);
   for (unsigned t = 0; t < threads; ++t)
-    cellCut[t] = static_cast<std::size_t>(std::lower_bound(runStart.begin(), runStart.end() - 1, cut[t]) - runStart.begin());
+    cellCut[t] =
+        static_cast<std::size_t>(std::lower_bound(runStart.begin(), runStart.end() - 1, cut[t]) - runStart.begin());
 
   // Within each cell: link to the first point (this sets every point's union-find entry); collect the
   // loose ones, the bounds of each cell's points and its non-loose points with the least and greatest
@@ -396,7 +397,8 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
             auto dz = [&](std::size_t c2) { return std::abs(static_cast<std::int64_t>(packed[c2] & kMask) - kz); };
             // The same row: the next cells up to ring ahead in z.
             for (std::size_t c2 = c + 1; c2 < cells && packed[c2] <= pack(kx, ky, kz + ring); ++c2)
-              if (ring == 1 || dz(c2) == ring) linkCells(static_cast<std::uint32_t>(c), static_cast<std::uint32_t>(c2), nearB);
+              if (ring == 1 || dz(c2) == ring)
+                linkCells(static_cast<std::uint32_t>(c), static_cast<std::uint32_t>(c2), nearB);
             for (std::size_t r = 0; r < rows.size(); ++r) {
               const int ox = std::abs(rows[r][0]), oy = std::abs(rows[r][1]);
               const std::int64_t x = kx + rows[r][0], y = ky + rows[r][1];
@@ -410,7 +412,8 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
               else
                 while (i < cells && packed[i] < lo) ++i;
               for (std::size_t c2 = i; c2 < cells && packed[c2] <= hi; ++c2)
-                if (!inner || dz(c2) == ring) linkCells(static_cast<std::uint32_t>(c), static_cast<std::uint32_t>(c2), nearB);
+                if (!inner || dz(c2) == ring)
+                  linkCells(static_cast<std::uint32_t>(c), static_cast<std::uint32_t>(c2), nearB);
             }
           }
         }
