@@ -12,12 +12,18 @@
 namespace clod_haptics {
 namespace detail {
 
+/** \brief The most threads threadsFor gives by default: the passes are bound by memory traffic, and each
+ * thread's per-cluster and per-cell arrays would make a many-core machine's peak memory grow with its cores. */
+constexpr unsigned kMaxDefaultThreads = 4;
+
 /**
- * \brief How many threads a pass over n items uses: requested (0 = the hardware's concurrency), but one
- * for fewer than minPerThread items per thread, where starting a thread costs more than it saves.
+ * \brief How many threads a pass over n items uses: requested (0 = the hardware's concurrency, at most
+ * kMaxDefaultThreads), but fewer when there are under minPerThread items per thread, where starting a
+ * thread costs more than it saves.
  */
 inline unsigned threadsFor(std::size_t n, unsigned requested, std::size_t minPerThread) {
-  const unsigned wanted = requested ? requested : std::max(1u, std::thread::hardware_concurrency());
+  const unsigned wanted =
+      requested ? requested : std::min(kMaxDefaultThreads, std::max(1u, std::thread::hardware_concurrency()));
   return static_cast<unsigned>(std::max<std::size_t>(1, std::min<std::size_t>(wanted, n / minPerThread)));
 }
 

@@ -47,8 +47,8 @@ class Clustering {
 class SingleLinkClustering : public Clustering {
  public:
   /**
-   * \brief threads: how many threads a large clustering uses (0 = the hardware's concurrency); inputs under
-   * kMinPointsPerThread points per thread use fewer. The result does not depend on it.
+   * \brief threads: how many threads a large clustering uses (0 = the hardware's concurrency, at most 4);
+   * inputs under kMinPointsPerThread points per thread use fewer. The result does not depend on it.
    */
   explicit SingleLinkClustering(unsigned threads = 0) : threads_(threads) {}
   std::uint32_t cluster(const std::vector<Vec3>& points, double d, std::vector<std::uint32_t>& labels) const override;
