@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <string>
 
 #include "clod_haptics/core/errors.h"
@@ -70,84 +71,100 @@ ClodSphereSet ClodBuilder::build(double d) const {
   // traffic); every value is computed as on one thread, in the same order where the order matters.
   const unsigned threads = detail::threadsFor(points, 0, kMinPointsPerThread);
 
-  // Mean of the member centres (summed in point order, as one thread would: one thread does all of it),
-  // beside the sort of the points by the triangle they wrap.
-  auto means = [&] {
-    if (chosen.size() == k) {
-      set.centres = std::move(chosen);
-      return;
-    }
-    std::vector<std::uint32_t> members(k, 0);
-    for (std::size_t i = 0; i < points; ++i) {
-      set.centres[labels[i]] += centres_[i];
-      ++members[labels[i]];
-    }
-    for (std::uint32_t c = 0; c < k; ++c) set.centres[c] /= static_cast<double>(members[c]);
-  };
-
-  // Triangle lists, ascending and unique per cluster, in O(n) without sorting: the points are visited in
-  // ascending order of the triangle they wrap (a counting sort over the triangles), so appending each
-  // to its cluster keeps every list ascending, and a duplicate is always the list's last entry. One
-  // pass counts, one fills the exactly sized array.
-  const std::size_t triangles = mesh.size();
-  std::vector<std::uint32_t> byTriangle(points);
-  std::vector<std::uint32_t> ends(triangles + 1, 0);  // ends[t]: one past triangle t's points in byTriangle
-  auto sortByTriangle = [&] {
-    for (std::size_t i = 0; i < points; ++i) ++ends[wrapped_[i] + 1];
-    for (std::size_t t = 0; t < triangles; ++t) ends[t + 1] += ends[t];
-    for (std::size_t i = 0; i < points; ++i) byTriangle[ends[wrapped_[i]]++] = static_cast<std::uint32_t>(i);
-  };
-  auto begins = [&](std::size_t t) { return t == 0 ? std::uint32_t{0} : ends[t - 1]; };
-  if (threads > 1) {
-    detail::runParallel(2, [&](unsigned t) { t ? sortByTriangle() : means(); });
-  } else {
-    means();
-    sortByTriangle();
-  }
-
-  // The lists: the triangles split among the threads (so a duplicate stays within one part); each part
-  // counts and fills its clusters' entries after those of the parts before. Per thread two arrays of
-  // one entry per cluster: only when there are few clusters per point.
   constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-  const unsigned parts = k <= points / 8 ? threads : 1;
-  std::vector<std::vector<std::uint32_t>> last(parts), count(parts);  // per part and cluster
-  // Calls add(cluster, triangle) for the points of part j's triangles in ascending triangle order.
-  auto forEachPoint = [&](unsigned j, auto&& add) {
-    for (std::size_t t = triangles * j / parts; t < triangles * (j + 1) / parts; ++t)
-      for (std::uint32_t p = begins(t); p < ends[t]; ++p) add(labels[byTriangle[p]], static_cast<std::uint32_t>(t));
-  };
-  detail::runParallel(parts, [&](unsigned j) {
-    last[j].assign(k, kNone);  // the last triangle appended to each cluster
-    count[j].assign(k, 0);
-    forEachPoint(j, [&](std::uint32_t c, std::uint32_t t) {
-      if (last[j][c] == t) return;
-      last[j][c] = t;
-      ++count[j][c];
+  if (k == points) {
+    // Every cluster has one member (d = 0, or no two centres closer than d): its list is the member's
+    // triangle and its centre the member's, computed as the general mean below computes it.
+    const bool chose = chosen.size() == k;
+    if (chose) set.centres = std::move(chosen);
+    std::iota(set.offsets.begin(), set.offsets.end(), 0u);
+    set.triangles.resize(k);
+    detail::runParallel(threads, [&](unsigned j) {
+      for (std::size_t i = points * j / threads; i < points * (j + 1) / threads; ++i) {
+        const std::uint32_t c = labels[i];
+        set.triangles[c] = wrapped_[i];
+        if (!chose) set.centres[c] = (Vec3::Zero() + centres_[i]) / 1.0;
+      }
     });
-  });
-  for (std::uint32_t c = 0; c < k; ++c) {
-    std::uint32_t start = set.offsets[c];
-    for (unsigned j = 0; j < parts; ++j) {
-      const std::uint32_t entries = count[j][c];
-      count[j][c] = start;  // now where part j's entries of cluster c go
-      start += entries;
+  } else {
+    // Mean of the member centres (summed in point order, as one thread would: one thread does all of it),
+    // beside the sort of the points by the triangle they wrap.
+    auto means = [&] {
+      if (chosen.size() == k) {
+        set.centres = std::move(chosen);
+        return;
+      }
+      std::vector<std::uint32_t> members(k, 0);
+      for (std::size_t i = 0; i < points; ++i) {
+        set.centres[labels[i]] += centres_[i];
+        ++members[labels[i]];
+      }
+      for (std::uint32_t c = 0; c < k; ++c) set.centres[c] /= static_cast<double>(members[c]);
+    };
+
+    // Triangle lists, ascending and unique per cluster, in O(n) without sorting: the points are visited in
+    // ascending order of the triangle they wrap (a counting sort over the triangles), so appending each
+    // to its cluster keeps every list ascending, and a duplicate is always the list's last entry. One
+    // pass counts, one fills the exactly sized array.
+    const std::size_t triangles = mesh.size();
+    std::vector<std::uint32_t> byTriangle(points);
+    std::vector<std::uint32_t> ends(triangles + 1, 0);  // ends[t]: one past triangle t's points in byTriangle
+    auto sortByTriangle = [&] {
+      for (std::size_t i = 0; i < points; ++i) ++ends[wrapped_[i] + 1];
+      for (std::size_t t = 0; t < triangles; ++t) ends[t + 1] += ends[t];
+      for (std::size_t i = 0; i < points; ++i) byTriangle[ends[wrapped_[i]]++] = static_cast<std::uint32_t>(i);
+    };
+    auto begins = [&](std::size_t t) { return t == 0 ? std::uint32_t{0} : ends[t - 1]; };
+    if (threads > 1) {
+      detail::runParallel(2, [&](unsigned t) { t ? sortByTriangle() : means(); });
+    } else {
+      means();
+      sortByTriangle();
     }
-    set.offsets[c + 1] = start;
-  }
-  set.triangles.resize(set.offsets[k]);
-  detail::runParallel(parts, [&](unsigned j) {
-    std::vector<std::uint32_t>& fill = count[j];
-    std::fill(last[j].begin(), last[j].end(), kNone);
-    forEachPoint(j, [&](std::uint32_t c, std::uint32_t t) {
-      if (last[j][c] == t) return;
-      last[j][c] = t;
-      set.triangles[fill[c]++] = t;
+
+    // The lists: the triangles split among the threads (so a duplicate stays within one part); each part
+    // counts and fills its clusters' entries after those of the parts before. Per thread two arrays of
+    // one entry per cluster: only when there are few clusters per point.
+    const unsigned parts = k <= points / 8 ? threads : 1;
+    std::vector<std::vector<std::uint32_t>> last(parts), count(parts);  // per part and cluster
+    // Calls add(cluster, triangle) for the points of part j's triangles in ascending triangle order.
+    auto forEachPoint = [&](unsigned j, auto&& add) {
+      for (std::size_t t = triangles * j / parts; t < triangles * (j + 1) / parts; ++t)
+        for (std::uint32_t p = begins(t); p < ends[t]; ++p) add(labels[byTriangle[p]], static_cast<std::uint32_t>(t));
+    };
+    detail::runParallel(parts, [&](unsigned j) {
+      last[j].assign(k, kNone);  // the last triangle appended to each cluster
+      count[j].assign(k, 0);
+      forEachPoint(j, [&](std::uint32_t c, std::uint32_t t) {
+        if (last[j][c] == t) return;
+        last[j][c] = t;
+        ++count[j][c];
+      });
     });
-  });
-  last.clear();
-  count.clear();
-  std::vector<std::uint32_t>().swap(byTriangle);
-  std::vector<std::uint32_t>().swap(ends);
+    for (std::uint32_t c = 0; c < k; ++c) {
+      std::uint32_t start = set.offsets[c];
+      for (unsigned j = 0; j < parts; ++j) {
+        const std::uint32_t entries = count[j][c];
+        count[j][c] = start;  // now where part j's entries of cluster c go
+        start += entries;
+      }
+      set.offsets[c + 1] = start;
+    }
+    set.triangles.resize(set.offsets[k]);
+    detail::runParallel(parts, [&](unsigned j) {
+      std::vector<std::uint32_t>& fill = count[j];
+      std::fill(last[j].begin(), last[j].end(), kNone);
+      forEachPoint(j, [&](std::uint32_t c, std::uint32_t t) {
+        if (last[j][c] == t) return;
+        last[j][c] = t;
+        set.triangles[fill[c]++] = t;
+      });
+    });
+    last.clear();
+    count.clear();
+    std::vector<std::uint32_t>().swap(byTriangle);
+    std::vector<std::uint32_t>().swap(ends);
+  }
 
   // Radius: reach every vertex of every wrapped triangle (the coverage invariant). The list entries are
   // split among the threads; a cluster's squared radius is the largest over its parts (exact, so the same).
