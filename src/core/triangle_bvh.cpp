@@ -5,6 +5,10 @@
 #include <cstring>
 #include <limits>
 #include <thread>
+
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 #include <atomic>
 
 namespace clod_haptics {
@@ -326,4 +330,46 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
   for (std::size_t i = 0; i < n; ++i) order_[i] = prims[i].index;
 }
 
+namespace detail {
+
+namespace {
+std::atomic<bool> avx2Off{false};
+}  // namespace
+
+void usePacketAvx2(bool on) { avx2Off = !on; }
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+bool packetAvx2() {
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has && !avx2Off.load(std::memory_order_relaxed);
+}
+
+__attribute__((target("avx2"))) void packetEnterAvx2(const float* const lo[2], const float* const hi[2],
+                                                    const double* o, const double* inv, double* const entry[2],
+                                                    unsigned mask[2]) {
+  constexpr int W = TriangleBvh::kPacket;
+  static_assert(W == 16, "four registers of four rays");
+  for (int c = 0; c < 2; ++c) {
+    unsigned m = 0;
+    for (int h = 0; h < W; h += 4) {
+      __m256d t0 = _mm256_setzero_pd(), t1 = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+      for (int k = 0; k < 3; ++k) {
+        const __m256d ok = _mm256_loadu_pd(o + k * W + h), ik = _mm256_loadu_pd(inv + k * W + h);
+        const __m256d a = _mm256_mul_pd(_mm256_sub_pd(_mm256_set1_pd(lo[c][k]), ok), ik);
+        const __m256d b = _mm256_mul_pd(_mm256_sub_pd(_mm256_set1_pd(hi[c][k]), ok), ik);
+        t0 = _mm256_max_pd(_mm256_min_pd(a, b), t0);
+        t1 = _mm256_min_pd(_mm256_max_pd(a, b), t1);
+      }
+      _mm256_storeu_pd(entry[c] + h, t0);
+      m |= static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(t0, t1, _CMP_LE_OQ))) << h;
+    }
+    mask[c] = m;
+  }
+}
+#else
+bool packetAvx2() { return false; }
+void packetEnterAvx2(const float* const*, const float* const*, const double*, const double*, double* const*, unsigned*) {}
+#endif
+
+}  // namespace detail
 }  // namespace clod_haptics

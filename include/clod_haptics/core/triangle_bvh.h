@@ -15,6 +15,20 @@
 
 namespace clod_haptics {
 
+namespace detail {
+/** \brief Whether forEachPacketHit uses AVX2: the CPU runs it (checked once) and it is not turned off. */
+bool packetAvx2();
+/** \brief Turns the AVX2 box test off (or back on where the CPU has it), so tests cover both forms. */
+void usePacketAvx2(bool on);
+/**
+ * \brief forEachPacketHit's box test of two boxes (lo[c], hi[c]) against 16 rays with AVX2 (four rays
+ * per register), the same values as its SSE2 form: o and inv are [3][16] row-major, entry[c] gets the
+ * 16 entry distances into box c and mask[c] the rays that meet it. The caller checks packetAvx2().
+ */
+void packetEnterAvx2(const float* const lo[2], const float* const hi[2], const double* o, const double* inv,
+                     double* const entry[2], unsigned mask[2]);
+}  // namespace detail
+
 /**
  * \brief A bounding-volume hierarchy over a mesh's triangles in flat arrays, for the ray casts of
  * sphere placement (every hit along a ray, not only the first).
@@ -214,6 +228,8 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
 #endif
     return mask;
   };
+  // Where the CPU runs AVX2 the child boxes are tested by one out-of-line call, four rays per register.
+  const bool avx2 = W == 16 && detail::packetAvx2();
   struct Item {
     std::uint32_t node;
     unsigned mask;
@@ -249,8 +265,18 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
     Item l, r;
     l.node = item.node + 1;
     r.node = node.first;
-    l.mask = enter(nodes_[l.node], l.t) & mask;
-    r.mask = enter(nodes_[r.node], r.t) & mask;
+    if (avx2) {
+      const float* const lo[2] = {nodes_[l.node].lo, nodes_[r.node].lo};
+      const float* const hi[2] = {nodes_[l.node].hi, nodes_[r.node].hi};
+      double* const entry[2] = {l.t, r.t};
+      unsigned masks[2];
+      detail::packetEnterAvx2(lo, hi, &o[0][0], &inv[0][0], entry, masks);
+      l.mask = masks[0] & mask;
+      r.mask = masks[1] & mask;
+    } else {
+      l.mask = enter(nodes_[l.node], l.t) & mask;
+      r.mask = enter(nodes_[r.node], r.t) & mask;
+    }
     // The order forEachRayHit takes for the first ray that meets both children (nearer first, a child
     // containing the origin last); the other rays follow it.
     const unsigned both = l.mask & r.mask;
