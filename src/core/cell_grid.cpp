@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <thread>
 
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
+#include "parallel.h"
 
 namespace clod_haptics {
 namespace {
@@ -302,13 +302,11 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
     second.clear();
     const std::uint32_t* list = sliceTriangles.data() + sliceFirst[slice];
     const std::size_t count = sliceFirst[slice + 1] - sliceFirst[slice], half = count / 2;
-    std::thread helper([&] {
-      collect(list + half, list + count, zBegin, zEnd, second);
-      std::sort(second.begin(), second.end(), order);
+    detail::runParallel(2, [&](unsigned part) {
+      auto& out = part ? second : first;
+      collect(part ? list + half : list, part ? list + count : list + half, zBegin, zEnd, out);
+      std::sort(out.begin(), out.end(), order);
     });
-    collect(list, list + half, zBegin, zEnd, first);
-    std::sort(first.begin(), first.end(), order);
-    helper.join();
     // Visits the candidates of both halves in merged order.
     auto merged = [&](auto&& visit) {
       std::size_t i = 0, j = 0;
@@ -407,9 +405,7 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
         refs[k] = ref;
       }
     };
-    std::thread helper([&] { fill(cells / 2, cells); });
-    fill(0, cells / 2);
-    helper.join();
+    detail::runParallel(2, [&](unsigned part) { part ? fill(cells / 2, cells) : fill(0, cells / 2); });
   }
 
   // Dense index when its bits are small (or forced), else a hash table.

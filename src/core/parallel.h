@@ -18,12 +18,13 @@ constexpr unsigned kMaxDefaultThreads = 4;
 
 /**
  * \brief How many threads a pass over n items uses: requested (0 = the hardware's concurrency, at most
- * kMaxDefaultThreads), but fewer when there are under minPerThread items per thread, where starting a
- * thread costs more than it saves.
+ * maxDefault), but fewer when there are under minPerThread items per thread, where starting a thread
+ * costs more than it saves. Compute-bound passes (the ray casts) lift maxDefault.
  */
-inline unsigned threadsFor(std::size_t n, unsigned requested, std::size_t minPerThread) {
+inline unsigned threadsFor(std::size_t n, unsigned requested, std::size_t minPerThread,
+                           unsigned maxDefault = kMaxDefaultThreads) {
   const unsigned wanted =
-      requested ? requested : std::min(kMaxDefaultThreads, std::max(1u, std::thread::hardware_concurrency()));
+      requested ? requested : std::min(maxDefault, std::max(1u, std::thread::hardware_concurrency()));
   return static_cast<unsigned>(std::max<std::size_t>(1, std::min<std::size_t>(wanted, n / minPerThread)));
 }
 

@@ -3,12 +3,11 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <functional>
 #include <cmath>
 #include <limits>
-#include <thread>
 
 #include "clod_haptics/core/triangle_bvh.h"
+#include "parallel.h"
 
 namespace clod_haptics {
 namespace {
@@ -64,8 +63,8 @@ struct PaperPlacement::Opposites {
 
 PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) const {
   const std::size_t n = mesh.size();
-  unsigned threads = threads_ ? threads_ : std::max(1u, std::thread::hardware_concurrency());
-  threads = static_cast<unsigned>(std::min<std::size_t>(threads, std::max<std::size_t>(1, n / 1024)));
+  // Ray casts are compute-bound: every hardware thread, at least 1024 rays each.
+  const unsigned threads = detail::threadsFor(n, threads_, 1024, std::numeric_limits<unsigned>::max());
   const TriangleBvh bvh(mesh, 4, threads);  // freed on return, before the spheres are written
   const double minT = 1e-12 * mesh.diagonal();  // ignore hits at the origin itself (coplanar duplicates)
 
@@ -178,10 +177,7 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
       }
     }
   };
-  std::vector<std::thread> pool;
-  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(worker, false);
-  worker(true);
-  for (auto& th : pool) th.join();
+  detail::runParallel(threads, [&](unsigned t) { worker(t == 0); });
   if (progress_) progress_(1.0);
   return {std::move(opposite), std::move(steps)};
 }
@@ -239,32 +235,34 @@ std::vector<PlacedSphere> PaperPlacement::place(const TriangleMesh& mesh, Placem
 PlacedCentres PaperPlacement::placeCentres(const TriangleMesh& mesh, PlacementStats* stats) const {
   const auto start = std::chrono::steady_clock::now();
   const Opposites found = castRays(mesh);
-  // The spheres written straight to their places, the second half of the triangles on a second thread
-  // (its first sphere's index counted beforehand): the same arrays as one pass in order.
+  // The spheres written straight to their places, the triangles split in parts on threads (each part's
+  // first sphere index counted beforehand): the same arrays as one pass in order.
   const std::size_t n = mesh.size();
-  const std::size_t half = n >= 4096 && (threads_ != 1) && std::thread::hardware_concurrency() > 1 ? n / 2 : n;
-  const std::size_t firstHalf = sphereCount(found.opposite, 0, half);
-  const std::size_t count = firstHalf + sphereCount(found.opposite, half, n);
+  const unsigned parts = detail::threadsFor(n, threads_, 2048);
+  std::vector<std::size_t> cut(parts + 1), at(parts + 1, 0);  // part j: triangles [cut[j], cut[j+1]), spheres from at[j]
+  for (unsigned j = 0; j <= parts; ++j) cut[j] = n * j / parts;
+  for (unsigned j = 0; j < parts; ++j) at[j + 1] = at[j] + sphereCount(found.opposite, cut[j], cut[j + 1]);
   PlacedCentres out;
-  out.centres.resize(count);
-  out.wrapped.resize(count);
-  auto write = [&](std::size_t begin, std::size_t end, std::size_t at, PlacementStats& part) {
-    forEachSphere(mesh, found.opposite, found.steps, begin, end, part, [&](const Vec3& centre, std::uint32_t t) {
-      out.centres[at] = centre;
-      out.wrapped[at] = t;
-      ++at;
-    });
-  };
-  PlacementStats s, second;
-  std::thread other;
-  if (half < n) other = std::thread(write, half, n, firstHalf, std::ref(second));
-  write(0, half, 0, s);
-  if (other.joinable()) other.join();
+  out.centres.resize(at[parts]);
+  out.wrapped.resize(at[parts]);
+  std::vector<PlacementStats> partStats(parts);
+  detail::runParallel(parts, [&](unsigned j) {
+    std::size_t next = at[j];
+    forEachSphere(mesh, found.opposite, found.steps, cut[j], cut[j + 1], partStats[j],
+                  [&](const Vec3& centre, std::uint32_t t) {
+                    out.centres[next] = centre;
+                    out.wrapped[next] = t;
+                    ++next;
+                  });
+  });
+  PlacementStats s;
   s.triangles = n;
-  s.paired += second.paired;
-  s.unpaired += second.unpaired;
-  s.degenerate += second.degenerate;
-  s.relaxations += second.relaxations;
+  for (const PlacementStats& part : partStats) {
+    s.paired += part.paired;
+    s.unpaired += part.unpaired;
+    s.degenerate += part.degenerate;
+    s.relaxations += part.relaxations;
+  }
   s.milliseconds = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   if (stats) *stats = s;
   return out;

@@ -11,6 +11,7 @@
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
 #include "clod_haptics/core/morton.h"
+#include "parallel.h"
 
 namespace clod_haptics {
 namespace {
@@ -379,10 +380,7 @@ std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::
   auto worker = [&]() {
     for (std::size_t t; (t = nextTask.fetch_add(1)) < tasks.size();) descend(tasks[t], below[t]);
   };
-  std::vector<std::thread> pool;
-  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(worker);
-  worker();
-  for (auto& th : pool) th.join();
+  detail::runParallel(threads, [&](unsigned) { worker(); });
   std::vector<std::uint32_t> clusterOf(m, 0);
   std::vector<Vec3> clusterCentre;
   auto take = [&](const std::vector<Leaf>& leaves) {

@@ -5,9 +5,9 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <thread>
 
 #include "clod_haptics/core/triangle_bvh.h"
+#include "parallel.h"
 
 namespace clod_haptics {
 
@@ -36,12 +36,9 @@ std::vector<PlacedSphere> TightPlacement::place(const TriangleMesh& mesh, Placem
       }
     }
   };
-  unsigned threads = threads_ ? threads_ : std::max(1u, std::thread::hardware_concurrency());
-  threads = static_cast<unsigned>(std::min<std::size_t>(threads, std::max<std::size_t>(1, n / 1024)));
-  std::vector<std::thread> pool;
-  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(worker);
-  worker();
-  for (auto& th : pool) th.join();
+  // Ray casts are compute-bound: every hardware thread, at least 1024 rays each.
+  detail::runParallel(detail::threadsFor(n, threads_, 1024, std::numeric_limits<unsigned>::max()),
+                      [&](unsigned) { worker(); });
 
   PlacementStats s;
   s.triangles = n;

@@ -1,15 +1,16 @@
 #include "clod_haptics/core/triangle_bvh.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <thread>
 
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
-#include <atomic>
+
+#include "parallel.h"
 
 namespace clod_haptics {
 namespace {
@@ -222,11 +223,7 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
     const std::uint32_t begin = halves[h], end = halves[h + 1];
     quarter[h] = end - begin > leaf ? b.split(begin, end, b.centreBox(begin, end), 1) : end;
   };
-  {
-    std::thread second(splitHalf, 1);
-    splitHalf(0);
-    second.join();
-  }
+  detail::runParallel(2, [&](unsigned h) { splitHalf(static_cast<int>(h)); });
   std::vector<Task> tasks;
   tasks.reserve(4);
   for (int h = 0; h < 2; ++h) {
@@ -250,11 +247,7 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
       b.build(task.nodes, task.begin, task.end, task.depth);
     }
   };
-  {
-    std::thread second(work);
-    work();
-    second.join();
-  }
+  detail::runParallel(2, [&](unsigned) { work(); });
   // Appends a task's subtree and returns the index of its root.
   auto append = [&](Task& task) {
     const std::uint32_t base = static_cast<std::uint32_t>(nodes.size());
@@ -314,12 +307,8 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
   };
   const bool parallel = threads >= 2 && n >= 4096;
   if (parallel) {
-    std::thread half([&]() { roundVertices(nv / 2, nv); });
-    roundVertices(0, nv / 2);
-    half.join();
-    std::thread other([&]() { fill(n / 2, n); });
-    fill(0, n / 2);
-    other.join();
+    detail::runParallel(2, [&](unsigned h) { h ? roundVertices(nv / 2, nv) : roundVertices(0, nv / 2); });
+    detail::runParallel(2, [&](unsigned h) { h ? fill(n / 2, n) : fill(0, n / 2); });
   } else {
     roundVertices(0, nv);
     fill(0, n);
