@@ -200,9 +200,9 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
   const std::size_t n = prims.size();
   const Build b{mesh, prims, std::max(1, leafSize)};
   const std::uint32_t count = static_cast<std::uint32_t>(n);
-  // At most 2n - 1 nodes: reserving that never reallocates, and untouched capacity is never resident.
-  nodes.reserve(2 * n);
   if (!parallel) {
+    // At most 2n - 1 nodes: reserving that never reallocates, and untouched capacity is never resident.
+    nodes.reserve(2 * n);
     b.build(nodes, 0, count, 0);
     return;
   }
@@ -248,28 +248,43 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
     }
   };
   detail::runParallel(2, [&](unsigned) { work(); });
-  // Appends a task's subtree and returns the index of its root.
-  auto append = [&](Task& task) {
-    const std::uint32_t base = static_cast<std::uint32_t>(nodes.size());
-    for (Node& node : task.nodes)
-      if (node.count == 0) node.first += base;
-    nodes.insert(nodes.end(), task.nodes.begin(), task.nodes.end());
-    std::vector<Node>().swap(task.nodes);
-    return base;
-  };
-  nodes.emplace_back();  // the root
+  // The subtrees' places in the serial build's depth-first order: the root, then per half its own node
+  // (when it was split) and its subtrees. They are copied there, their node indices shifted, in parallel.
+  std::vector<std::uint32_t> base(tasks.size());
   std::uint32_t half[2];
+  std::uint32_t size = 1;  // the root
   std::size_t t = 0;
   for (int h = 0; h < 2; ++h) {
+    half[h] = size;
+    if (quarter[h] != halves[h + 1]) ++size;  // the half's own node
+    for (const std::size_t end = t + (quarter[h] == halves[h + 1] ? 1 : 2); t < end; ++t) {
+      base[t] = size;
+      size += static_cast<std::uint32_t>(tasks[t].nodes.size());
+    }
+  }
+  nodes.resize(size);
+  std::atomic<std::size_t> nextCopy{0};
+  detail::runParallel(2, [&](unsigned) {
+    for (std::size_t i; (i = nextCopy.fetch_add(1)) < bySize.size();) {
+      Task& task = tasks[bySize[i]];
+      const std::uint32_t shift = base[bySize[i]];
+      Node* out = nodes.data() + shift;
+      for (const Node& node : task.nodes) {
+        *out = node;
+        if (node.count == 0) out->first += shift;
+        ++out;
+      }
+      std::vector<Node>().swap(task.nodes);
+    }
+  });
+  t = 0;
+  for (int h = 0; h < 2; ++h) {
     if (quarter[h] == halves[h + 1]) {
-      half[h] = append(tasks[t++]);
+      ++t;
       continue;
     }
-    half[h] = static_cast<std::uint32_t>(nodes.size());
-    nodes.emplace_back();
-    const std::uint32_t left = append(tasks[t++]);
-    const std::uint32_t right = append(tasks[t++]);
-    Build::join(nodes[half[h]], nodes[left], nodes[right], right);
+    Build::join(nodes[half[h]], nodes[base[t]], nodes[base[t + 1]], base[t + 1]);
+    t += 2;
   }
   Build::join(nodes[0], nodes[half[0]], nodes[half[1]], half[1]);
 }
@@ -316,7 +331,17 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
   std::vector<float>().swap(rounded);
   buildNodes(mesh, prims, leafSize, parallel, nodes_);
   order_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) order_[i] = prims[i].index;
+  corners_.resize(n);
+  auto leafOrder = [&](std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) {
+      order_[i] = prims[i].index;
+      corners_[i] = mesh.triangles[prims[i].index];
+    }
+  };
+  if (parallel)
+    detail::runParallel(2, [&](unsigned h) { h ? leafOrder(n / 2, n) : leafOrder(0, n / 2); });
+  else
+    leafOrder(0, n);
 }
 
 namespace detail {
