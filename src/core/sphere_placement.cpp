@@ -41,6 +41,11 @@ struct Hit {
 // Hits a ray keeps for its final choice; past that the hits are enumerated again.
 constexpr int kKeep = 64;
 
+// Steps added to the highest step of a packet to guess the next packet's. A guess too low costs the ray a
+// second walk (1.3 to 2.5% of the rays on the subdivided shared meshes with this margin), one too high
+// skips less; 20 measured faster than 10 (1 ray in 36 walked twice on refined_elephant), 30 and 50.
+constexpr int kGuessMargin = 20;
+
 }  // namespace
 
 PlacedCentres SpherePlacement::placeCentres(const TriangleMesh& mesh, PlacementStats* stats) const {
@@ -75,6 +80,11 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
   // step) or below tau_k nearer than the best hit at step k; the origin's neighbourhood, visited last,
   // mostly faces along the normal and is skipped. Skipping is exact in any visiting order (k only
   // falls and the best distance only shrinks), so the rays go in packets of neighbours.
+  // Before its first hit a ray has nothing to skip by, and that part of the walk was most of it. So
+  // each ray also gets a guess g from its neighbours (the previous packet's highest step plus a margin)
+  // and skips every subtree whose normals cannot go below tau_g. Every hit below tau_g is still found,
+  // so when the ray ends at a step k <= g its answer (which only involves hits below tau_k) is exact;
+  // when it ends above g or without a hit it walks again without the guess.
   struct Ray {
     std::uint32_t triangle;
     Vec3 normal;
@@ -82,7 +92,18 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
     int k;  // step of minDot; -1 before the first hit
     double bestT;
     int seen;
+    int guess;        // a step the ray's answer is expected at or below, or -1 (see the walk below)
+    double guessTau;  // tau_guess, or +inf without a guess
     Hit kept[kKeep];
+    // Back to no hits and no guess.
+    void reset() {
+      minDot = std::numeric_limits<double>::infinity();
+      k = -1;
+      bestT = std::numeric_limits<double>::infinity();
+      seen = 0;
+      guess = -1;
+      guessTau = std::numeric_limits<double>::infinity();
+    }
     void rebest() {
       const double tau = kTau0 + kTauStep * k;
       bestT = std::numeric_limits<double>::infinity();
@@ -115,8 +136,9 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
     };
     auto keep = [&](int r, const TriangleBvh::Node& node, double entry) {
       const Ray& ray = rays[r];
-      if (ray.k < 0 || ray.seen > kKeep) return true;  // nothing to compare with yet, or the buffer overflowed
       const double lower = TriangleBvh::minDot(node, ray.normal) - 1e-9;
+      if (!(lower < ray.guessTau)) return false;  // cannot go below the guessed step
+      if (ray.k < 0 || ray.seen > kKeep) return true;  // nothing to compare with yet, or the buffer overflowed
       if (ray.k >= 1 && lower < kTau0 + kTauStep * (ray.k - 1)) return true;
       return lower < kTau0 + kTauStep * ray.k && entry <= ray.bestT;
     };
@@ -148,6 +170,7 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
       opposite[t] = best;
       steps[t] = static_cast<std::uint16_t>(std::min(ray.k, 65535));
     };
+    int guess = -1;  // the step guessed for the next packet
     for (;;) {
       const std::size_t begin = next.fetch_add(kChunk);
       if (begin >= n) return;
@@ -164,16 +187,31 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
           Ray& ray = rays[count];
           ray.triangle = t;
           ray.normal = normal;
-          ray.minDot = std::numeric_limits<double>::infinity();
-          ray.k = -1;
-          ray.bestT = std::numeric_limits<double>::infinity();
-          ray.seen = 0;
+          ray.reset();
           origins[count] = mesh.centroid(t);
           dirs[count] = -normal;
           ++count;
         }
+        for (int r = 0; r < count; ++r) {
+          rays[r].guess = guess;
+          rays[r].guessTau = guess >= 0 ? kTau0 + kTauStep * guess : std::numeric_limits<double>::infinity();
+        }
         bvh.forEachPacketHit(origins, dirs, count, hit, keep);
-        for (int r = 0; r < count; ++r) finish(r);
+        int highest = -1;
+        for (int r = 0; r < count; ++r) {
+          Ray& ray = rays[r];
+          if (ray.guess >= 0 && (ray.k < 0 || ray.k > ray.guess)) {
+            // Nothing below tau_guess: the answer may lie in a skipped subtree. Walk again without the guess.
+            ray.reset();
+            double all = std::numeric_limits<double>::infinity();
+            bvh.forEachRayHit(
+                origins[r], dirs[r], all, [&](std::uint32_t tri, double dist) { hit(r, tri, dist); },
+                [&](const TriangleBvh::Node& node, double entry) { return keep(r, node, entry); });
+          }
+          highest = std::max(highest, ray.k);
+          finish(r);
+        }
+        guess = highest >= 0 ? highest + kGuessMargin : -1;
       }
     }
   };
