@@ -69,23 +69,76 @@ struct Box {
   }
 };
 
-// What the build keeps per triangle: its box, its box centre (the binning key) and its index, 40 bytes.
-// The build partitions these records themselves, so every pass over a node's range reads memory in
-// order instead of gathering through the index array.
-struct Prim {
-  Box box;
-  float centre[3];
+// What the build keeps per triangle: its box and its index, 32 bytes, each corner in a 16-byte row so a
+// pass loads it with one instruction (the row's fourth float: 0 after lo, the index's bits after hi,
+// masked off before any arithmetic). The build partitions these records themselves, so every pass
+// over a node's range reads memory in order instead of gathering through an index array.
+struct alignas(16) Prim {
+  float lo[3];
+  float zero = 0.0f;
+  float hi[3];
   std::uint32_t index;
 };
+
+// A box centre coordinate, the binning key.
+float centreOf(const Prim& p, int axis) { return 0.5f * p.lo[axis] + 0.5f * p.hi[axis]; }
+
+// Four floats of which the build uses three; the same values with SSE or without.
+#if defined(__SSE2__)
+using F4 = __m128;
+F4 loadLo(const Prim& p) { return _mm_load_ps(p.lo); }
+F4 loadHi(const Prim& p) {  // the index's bits cleared
+  return _mm_and_ps(_mm_load_ps(p.hi), _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1)));
+}
+F4 splat4(float f) { return _mm_set1_ps(f); }
+F4 min4(F4 a, F4 b) { return _mm_min_ps(a, b); }
+F4 max4(F4 a, F4 b) { return _mm_max_ps(a, b); }
+F4 centre4(F4 lo, F4 hi) { return _mm_add_ps(_mm_mul_ps(_mm_set1_ps(0.5f), lo), _mm_mul_ps(_mm_set1_ps(0.5f), hi)); }
+void store4(float* out, F4 a) { _mm_storeu_ps(out, a); }
+#else
+struct F4 {
+  float v[4];
+};
+F4 loadLo(const Prim& p) { return {{p.lo[0], p.lo[1], p.lo[2], 0.0f}}; }
+F4 loadHi(const Prim& p) { return {{p.hi[0], p.hi[1], p.hi[2], 0.0f}}; }
+F4 splat4(float f) { return {{f, f, f, f}}; }
+F4 min4(F4 a, F4 b) { return {{a.v[0] < b.v[0] ? a.v[0] : b.v[0], a.v[1] < b.v[1] ? a.v[1] : b.v[1], a.v[2] < b.v[2] ? a.v[2] : b.v[2], 0.0f}}; }
+F4 max4(F4 a, F4 b) { return {{a.v[0] > b.v[0] ? a.v[0] : b.v[0], a.v[1] > b.v[1] ? a.v[1] : b.v[1], a.v[2] > b.v[2] ? a.v[2] : b.v[2], 0.0f}}; }
+F4 centre4(F4 lo, F4 hi) {
+  F4 c;
+  for (int k = 0; k < 4; ++k) c.v[k] = 0.5f * lo.v[k] + 0.5f * hi.v[k];
+  return c;
+}
+void store4(float* out, F4 a) { std::memcpy(out, a.v, sizeof a.v); }
+#endif
+
+// A bin of the surface area heuristic: the boxes of its triangles and the bounds of their centres.
+struct Bin {
+  F4 lo = splat4(std::numeric_limits<float>::infinity()), hi = splat4(-std::numeric_limits<float>::infinity());
+  F4 clo = lo, chi = hi;
+  std::uint32_t count = 0;
+};
+Box boxOf(F4 lo, F4 hi) {
+  float l[4], h[4];
+  store4(l, lo);
+  store4(h, hi);
+  Box b;
+  for (int k = 0; k < 3; ++k) {
+    b.lo[k] = l[k];
+    b.hi[k] = h[k];
+  }
+  return b;
+}
 
 struct Build {
   const TriangleMesh& mesh;
   std::vector<Prim>& prims;
   int leafSize;
 
-  // Partitions order[begin, end) and returns the split point; falls back to the median when the
-  // centres coincide along the axis or the heuristic leaves one side empty.
-  std::uint32_t split(std::uint32_t begin, std::uint32_t end, const Box& cbox, int depth) const {
+  // Partitions prims[begin, end) (centre bounds cbox) and returns the split point, with the centre
+  // bounds of both sides in child (from the bins: no pass of their own); falls back to the median when
+  // the centres coincide along the axis or the heuristic leaves one side empty.
+  std::uint32_t split(std::uint32_t begin, std::uint32_t end, const Box& cbox, int depth, Box child[2]) const {
     int axis = 0;
     for (int k = 1; k < 3; ++k)
       if (double(cbox.hi[k]) - cbox.lo[k] > double(cbox.hi[axis]) - cbox.lo[axis]) axis = k;
@@ -93,26 +146,32 @@ struct Build {
     auto median = [&]() {
       const std::uint32_t mid = begin + (end - begin) / 2;
       std::nth_element(prims.begin() + begin, prims.begin() + mid, prims.begin() + end,
-                       [&](const Prim& a, const Prim& b) { return a.centre[axis] < b.centre[axis]; });
+                       [&](const Prim& a, const Prim& b) { return centreOf(a, axis) < centreOf(b, axis); });
+      child[0] = centreBox(begin, mid);
+      child[1] = centreBox(mid, end);
       return mid;
     };
     if (!(extent > 0.0) || !std::isfinite(extent) || end - begin < 16 || depth >= kMaxSahDepth) return median();
     const double scale = kBins / extent;
-    auto binOf = [&](const Prim& p) { return std::min(kBins - 1, static_cast<int>((p.centre[axis] - lo) * scale)); };
-    Box bins[kBins];
-    std::uint32_t counts[kBins] = {};
+    auto binOf = [&](const Prim& p) { return std::min(kBins - 1, static_cast<int>((centreOf(p, axis) - lo) * scale)); };
+    Bin bins[kBins];
     for (std::uint32_t i = begin; i < end; ++i) {
-      const int b = binOf(prims[i]);
-      bins[b].extend(prims[i].box);
-      ++counts[b];
+      const Prim& p = prims[i];
+      Bin& bin = bins[binOf(p)];
+      const F4 pl = loadLo(p), ph = loadHi(p), c = centre4(pl, ph);
+      bin.lo = min4(bin.lo, pl);
+      bin.hi = max4(bin.hi, ph);
+      bin.clo = min4(bin.clo, c);
+      bin.chi = max4(bin.chi, c);
+      ++bin.count;
     }
     double rightArea[kBins];
     std::uint32_t rightCount[kBins];
     Box acc;
     std::uint32_t n = 0;
     for (int i = kBins - 1; i > 0; --i) {
-      acc.extend(bins[i]);
-      n += counts[i];
+      acc.extend(boxOf(bins[i].lo, bins[i].hi));
+      n += bins[i].count;
       rightArea[i] = acc.halfArea();
       rightCount[i] = n;
     }
@@ -121,8 +180,8 @@ struct Build {
     double bestCost = std::numeric_limits<double>::infinity();
     int bestSplit = -1;
     for (int i = 1; i < kBins; ++i) {
-      acc.extend(bins[i - 1]);
-      n += counts[i - 1];
+      acc.extend(boxOf(bins[i - 1].lo, bins[i - 1].hi));
+      n += bins[i - 1].count;
       if (n == 0 || rightCount[i] == 0) continue;
       const double cost = acc.halfArea() * n + rightArea[i] * rightCount[i];
       if (cost < bestCost) {
@@ -133,27 +192,37 @@ struct Build {
     if (bestSplit < 0) return median();
     const auto mid = std::partition(prims.begin() + begin, prims.begin() + end,
                                     [&](const Prim& p) { return binOf(p) < bestSplit; });
+    for (int side = 0; side < 2; ++side) {
+      child[side] = Box();
+      for (int i = side ? bestSplit : 0; i < (side ? kBins : bestSplit); ++i)
+        if (bins[i].count) child[side].extend(boxOf(bins[i].clo, bins[i].chi));
+    }
     return static_cast<std::uint32_t>(mid - prims.begin());
   }
 
   Box centreBox(std::uint32_t begin, std::uint32_t end) const {
     Box c;
-    for (std::uint32_t i = begin; i < end; ++i) c.extend(prims[i].centre);
+    for (std::uint32_t i = begin; i < end; ++i) {
+      const float centre[3] = {centreOf(prims[i], 0), centreOf(prims[i], 1), centreOf(prims[i], 2)};
+      c.extend(centre);
+    }
     return c;
   }
 
   // Builds order[begin, end) into nodes (indices local to nodes, left child next to its parent) and
   // returns the node's index; bounds are filled bottom up from the leaves.
-  std::uint32_t build(std::vector<TriangleBvh::Node>& nodes, std::uint32_t begin, std::uint32_t end, int depth) const {
+  std::uint32_t build(std::vector<TriangleBvh::Node>& nodes, std::uint32_t begin, std::uint32_t end, const Box& cbox,
+                      int depth) const {
     const std::uint32_t self = static_cast<std::uint32_t>(nodes.size());
     nodes.emplace_back();
     if (end - begin <= static_cast<std::uint32_t>(leafSize)) {
       leaf(nodes[self], begin, end);
       return self;
     }
-    const std::uint32_t mid = split(begin, end, centreBox(begin, end), depth);
-    const std::uint32_t left = build(nodes, begin, mid, depth + 1);
-    const std::uint32_t right = build(nodes, mid, end, depth + 1);
+    Box child[2];
+    const std::uint32_t mid = split(begin, end, cbox, depth, child);
+    const std::uint32_t left = build(nodes, begin, mid, child[0], depth + 1);
+    const std::uint32_t right = build(nodes, mid, end, child[1], depth + 1);
     join(nodes[self], nodes[left], nodes[right], right);
     return self;
   }
@@ -162,7 +231,8 @@ struct Build {
     Box box;
     double nlo[3] = {2, 2, 2}, nhi[3] = {-2, -2, -2};
     for (std::uint32_t i = begin; i < end; ++i) {
-      box.extend(prims[i].box);
+      box.extend(prims[i].lo);
+      box.extend(prims[i].hi);
       const Vec3& n = mesh.normals[prims[i].index];
       for (int k = 0; k < 3; ++k) {
         nlo[k] = std::min(nlo[k], n[k]);
@@ -203,7 +273,7 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
   if (!parallel) {
     // At most 2n - 1 nodes: reserving that never reallocates, and untouched capacity is never resident.
     nodes.reserve(2 * n);
-    b.build(nodes, 0, count, 0);
+    b.build(nodes, 0, count, b.centreBox(0, count), 0);
     return;
   }
   // The two top levels' splits first (the second level's two on two threads), then the up to four
@@ -212,26 +282,29 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
   // same tree as the serial build, node for node, with the work balanced however uneven the splits.
   struct Task {
     std::uint32_t begin, end;
+    Box cbox;
     int depth;
     std::vector<Node> nodes;
   };
   const std::uint32_t leaf = static_cast<std::uint32_t>(b.leafSize);
-  const std::uint32_t mid = b.split(0, count, b.centreBox(0, count), 0);
+  Box half[2];  // centre bounds of each half
+  const std::uint32_t mid = b.split(0, count, b.centreBox(0, count), 0, half);
   const std::uint32_t halves[3] = {0, mid, count};
   std::uint32_t quarter[2];  // each half's split, or its end when the half is a leaf
+  Box quarters[2][2];
   auto splitHalf = [&](int h) {
     const std::uint32_t begin = halves[h], end = halves[h + 1];
-    quarter[h] = end - begin > leaf ? b.split(begin, end, b.centreBox(begin, end), 1) : end;
+    quarter[h] = end - begin > leaf ? b.split(begin, end, half[h], 1, quarters[h]) : end;
   };
   detail::runParallel(2, [&](unsigned h) { splitHalf(static_cast<int>(h)); });
   std::vector<Task> tasks;
   tasks.reserve(4);
   for (int h = 0; h < 2; ++h) {
     if (quarter[h] == halves[h + 1]) {
-      tasks.push_back({halves[h], halves[h + 1], 1, {}});
+      tasks.push_back({halves[h], halves[h + 1], half[h], 1, {}});
     } else {
-      tasks.push_back({halves[h], quarter[h], 2, {}});
-      tasks.push_back({quarter[h], halves[h + 1], 2, {}});
+      tasks.push_back({halves[h], quarter[h], quarters[h][0], 2, {}});
+      tasks.push_back({quarter[h], halves[h + 1], quarters[h][1], 2, {}});
     }
   }
   std::vector<std::size_t> bySize(tasks.size());
@@ -244,18 +317,18 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
     for (std::size_t i; (i = next.fetch_add(1)) < bySize.size();) {
       Task& task = tasks[bySize[i]];
       task.nodes.reserve(2 * std::size_t(task.end - task.begin));
-      b.build(task.nodes, task.begin, task.end, task.depth);
+      b.build(task.nodes, task.begin, task.end, task.cbox, task.depth);
     }
   };
   detail::runParallel(2, [&](unsigned) { work(); });
   // The subtrees' places in the serial build's depth-first order: the root, then per half its own node
   // (when it was split) and its subtrees. They are copied there, their node indices shifted, in parallel.
   std::vector<std::uint32_t> base(tasks.size());
-  std::uint32_t half[2];
+  std::uint32_t halfNode[2];
   std::uint32_t size = 1;  // the root
   std::size_t t = 0;
   for (int h = 0; h < 2; ++h) {
-    half[h] = size;
+    halfNode[h] = size;
     if (quarter[h] != halves[h + 1]) ++size;  // the half's own node
     for (const std::size_t end = t + (quarter[h] == halves[h + 1] ? 1 : 2); t < end; ++t) {
       base[t] = size;
@@ -283,10 +356,10 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
       ++t;
       continue;
     }
-    Build::join(nodes[half[h]], nodes[base[t]], nodes[base[t + 1]], base[t + 1]);
+    Build::join(nodes[halfNode[h]], nodes[base[t]], nodes[base[t + 1]], base[t + 1]);
     t += 2;
   }
-  Build::join(nodes[0], nodes[half[0]], nodes[half[1]], half[1]);
+  Build::join(nodes[0], nodes[halfNode[0]], nodes[halfNode[1]], halfNode[1]);
 }
 
 }  // namespace
@@ -309,14 +382,18 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
   auto fill = [&](std::size_t begin, std::size_t end) {
     for (std::size_t t = begin; t < end; ++t) {
       Prim& p = prims[t];
+      Box box;
       for (int v = 0; v < 3; ++v) {
         const float* r = &rounded[6 * std::size_t(mesh.triangles[t][v])];
         for (int k = 0; k < 3; ++k) {
-          p.box.lo[k] = std::min(p.box.lo[k], r[k]);
-          p.box.hi[k] = std::max(p.box.hi[k], r[3 + k]);
+          box.lo[k] = std::min(box.lo[k], r[k]);
+          box.hi[k] = std::max(box.hi[k], r[3 + k]);
         }
       }
-      for (int k = 0; k < 3; ++k) p.centre[k] = 0.5f * p.box.lo[k] + 0.5f * p.box.hi[k];
+      for (int k = 0; k < 3; ++k) {
+        p.lo[k] = box.lo[k];
+        p.hi[k] = box.hi[k];
+      }
       p.index = static_cast<std::uint32_t>(t);
     }
   };
