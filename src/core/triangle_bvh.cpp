@@ -436,13 +436,14 @@ bool packetAvx2() {
 }
 
 __attribute__((target("avx2"))) void packetEnterAvx2(const float* const lo[2], const float* const hi[2],
-                                                    const double* o, const double* inv, double* const entry[2],
-                                                    unsigned mask[2]) {
+                                                    const double* o, const double* inv, unsigned active,
+                                                    double* const entry[2], unsigned mask[2]) {
   constexpr int W = TriangleBvh::kPacket;
   static_assert(W == 16, "four registers of four rays");
   for (int c = 0; c < 2; ++c) {
     unsigned m = 0;
     for (int h = 0; h < W; h += 4) {
+      if (!((active >> h) & 0xFu)) continue;  // the active rays of a packet are mostly neighbours
       __m256d t0 = _mm256_setzero_pd(), t1 = _mm256_set1_pd(std::numeric_limits<double>::infinity());
       for (int k = 0; k < 3; ++k) {
         const __m256d ok = _mm256_loadu_pd(o + k * W + h), ik = _mm256_loadu_pd(inv + k * W + h);
@@ -454,12 +455,13 @@ __attribute__((target("avx2"))) void packetEnterAvx2(const float* const lo[2], c
       _mm256_storeu_pd(entry[c] + h, t0);
       m |= static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(t0, t1, _CMP_LE_OQ))) << h;
     }
-    mask[c] = m;
+    mask[c] = m & active;
   }
 }
 #else
 bool packetAvx2() { return false; }
-void packetEnterAvx2(const float* const*, const float* const*, const double*, const double*, double* const*, unsigned*) {}
+void packetEnterAvx2(const float* const*, const float* const*, const double*, const double*, unsigned, double* const*,
+                     unsigned*) {}
 #endif
 
 }  // namespace detail

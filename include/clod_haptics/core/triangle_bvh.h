@@ -21,12 +21,13 @@ bool packetAvx2();
 /** \brief Turns the AVX2 box test off (or back on where the CPU has it), so tests cover both forms. */
 void usePacketAvx2(bool on);
 /**
- * \brief forEachPacketHit's box test of two boxes (lo[c], hi[c]) against 16 rays with AVX2 (four rays
- * per register), the same values as its SSE2 form: o and inv are [3][16] row-major, entry[c] gets the
- * 16 entry distances into box c and mask[c] the rays that meet it. The caller checks packetAvx2().
+ * \brief forEachPacketHit's box test of two boxes (lo[c], hi[c]) against the rays of active with AVX2
+ * (four rays per register, groups of four without an active ray skipped), the same values as its SSE2
+ * form: o and inv are [3][16] row-major, entry[c] gets the entry distances into box c (of the groups
+ * tested) and mask[c] the active rays that meet it. The caller checks packetAvx2().
  */
 void packetEnterAvx2(const float* const lo[2], const float* const hi[2], const double* o, const double* inv,
-                     double* const entry[2], unsigned mask[2]);
+                     unsigned active, double* const entry[2], unsigned mask[2]);
 }  // namespace detail
 
 /**
@@ -274,9 +275,9 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
       const float* const hi[2] = {nodes_[l.node].hi, nodes_[r.node].hi};
       double* const entry[2] = {l.t, r.t};
       unsigned masks[2];
-      detail::packetEnterAvx2(lo, hi, &o[0][0], &inv[0][0], entry, masks);
-      l.mask = masks[0] & mask;
-      r.mask = masks[1] & mask;
+      detail::packetEnterAvx2(lo, hi, &o[0][0], &inv[0][0], mask, entry, masks);
+      l.mask = masks[0];
+      r.mask = masks[1];
     } else {
       l.mask = enter(nodes_[l.node], l.t) & mask;
       r.mask = enter(nodes_[r.node], r.t) & mask;
