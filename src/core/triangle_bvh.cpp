@@ -75,10 +75,12 @@ struct Box {
 // over a node's range reads memory in order instead of gathering through an index array.
 struct alignas(16) Prim {
   float lo[3];
-  float zero = 0.0f;
+  float zero;
   float hi[3];
   std::uint32_t index;
 };
+
+using PrimArray = std::vector<Prim, detail::DefaultInitAllocator<Prim>>;
 
 // A box centre coordinate, the binning key.
 float centreOf(const Prim& p, int axis) { return 0.5f * p.lo[axis] + 0.5f * p.hi[axis]; }
@@ -132,7 +134,7 @@ Box boxOf(F4 lo, F4 hi) {
 
 struct Build {
   const TriangleMesh& mesh;
-  std::vector<Prim>& prims;
+  PrimArray& prims;
   int leafSize;
 
   // Partitions prims[begin, end) (centre bounds cbox) and returns the split point, with the centre
@@ -211,7 +213,7 @@ struct Build {
 
   // Builds order[begin, end) into nodes (indices local to nodes, left child next to its parent) and
   // returns the node's index; bounds are filled bottom up from the leaves.
-  std::uint32_t build(std::vector<TriangleBvh::Node>& nodes, std::uint32_t begin, std::uint32_t end, const Box& cbox,
+  std::uint32_t build(TriangleBvh::NodeArray& nodes, std::uint32_t begin, std::uint32_t end, const Box& cbox,
                       int depth) const {
     const std::uint32_t self = static_cast<std::uint32_t>(nodes.size());
     nodes.emplace_back();
@@ -264,8 +266,8 @@ struct Build {
 };
 
 // Builds the nodes over prims (permuting them into leaf order).
-void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize, bool parallel,
-                std::vector<TriangleBvh::Node>& nodes) {
+void buildNodes(const TriangleMesh& mesh, PrimArray& prims, int leafSize, bool parallel,
+                TriangleBvh::NodeArray& nodes) {
   using Node = TriangleBvh::Node;
   const std::size_t n = prims.size();
   const Build b{mesh, prims, std::max(1, leafSize)};
@@ -284,7 +286,7 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
     std::uint32_t begin, end;
     Box cbox;
     int depth;
-    std::vector<Node> nodes;
+    TriangleBvh::NodeArray nodes;
   };
   const std::uint32_t leaf = static_cast<std::uint32_t>(b.leafSize);
   Box half[2];  // centre bounds of each half
@@ -347,7 +349,7 @@ void buildNodes(const TriangleMesh& mesh, std::vector<Prim>& prims, int leafSize
         if (node.count == 0) out->first += shift;
         ++out;
       }
-      std::vector<Node>().swap(task.nodes);
+      TriangleBvh::NodeArray().swap(task.nodes);
     }
   });
   t = 0;
@@ -370,8 +372,8 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
   // Every vertex rounded outward once (a vertex is shared by about six triangles), then each
   // triangle's box from its three corners.
   const std::size_t nv = mesh.vertices.size();
-  std::vector<float> rounded(6 * nv);  // per vertex: down x y z, up x y z
-  std::vector<Prim> prims(n);
+  std::vector<float, detail::DefaultInitAllocator<float>> rounded(6 * nv);  // per vertex: down x y z, up x y z
+  PrimArray prims(n);
   auto roundVertices = [&](std::size_t begin, std::size_t end) {
     for (std::size_t v = begin; v < end; ++v)
       for (int k = 0; k < 3; ++k) {
@@ -394,6 +396,7 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
         p.lo[k] = box.lo[k];
         p.hi[k] = box.hi[k];
       }
+      p.zero = 0.0f;
       p.index = static_cast<std::uint32_t>(t);
     }
   };
@@ -405,7 +408,7 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
     roundVertices(0, nv);
     fill(0, n);
   }
-  std::vector<float>().swap(rounded);
+  decltype(rounded)().swap(rounded);
   buildNodes(mesh, prims, leafSize, parallel, nodes_);
   order_.resize(n);
   corners_.resize(n);

@@ -4,6 +4,10 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <new>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #if defined(__SSE2__)
@@ -16,6 +20,30 @@
 namespace clod_haptics {
 
 namespace detail {
+/**
+ * \brief std::allocator whose value-less construct default-initialises: resizing a vector of plain
+ * records leaves them unwritten (and their fresh pages untouched) until the code that fills them runs,
+ * on as many threads as it uses, instead of zeroing them first on one.
+ */
+template <class T>
+struct DefaultInitAllocator : std::allocator<T> {
+  template <class U>
+  struct rebind {
+    using other = DefaultInitAllocator<U>;
+  };
+  DefaultInitAllocator() = default;
+  template <class U>
+  DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
+  template <class U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+
 /** \brief Whether forEachPacketHit uses AVX2: the CPU runs it (checked once) and it is not turned off. */
 bool packetAvx2();
 /** \brief Turns the AVX2 box test off (or back on where the CPU has it), so tests cover both forms. */
@@ -49,6 +77,8 @@ class TriangleBvh {
     std::uint32_t first;  ///< leaf: first entry in order(); inner: index of the right child
     std::uint32_t count;  ///< leaf: number of triangles; inner: 0
   };
+  /** \brief The nodes' array (filled by the build's threads without zeroing first). */
+  using NodeArray = std::vector<Node, detail::DefaultInitAllocator<Node>>;
 
   /**
    * \brief Builds the hierarchy (binned surface area heuristic); the mesh must outlive it. threads > 1
@@ -96,7 +126,7 @@ class TriangleBvh {
   }
 
   /** \brief The nodes, root first. */
-  const std::vector<Node>& nodes() const { return nodes_; }
+  const NodeArray& nodes() const { return nodes_; }
   /** \brief Triangle indices in leaf order. */
   const std::vector<std::uint32_t>& order() const { return order_; }
 
@@ -107,11 +137,11 @@ class TriangleBvh {
   static bool leftFirst(double tl, double tr) { return (tl == 0.0) == (tr == 0.0) ? tl <= tr : tr == 0.0; }
 
   const TriangleMesh& mesh_;
-  std::vector<Node> nodes_;
+  NodeArray nodes_;
   std::vector<std::uint32_t> order_;
   // Each leaf entry's vertex indices, in leaf order: a leaf's triangles are read from one run of memory
   // instead of through the mesh's triangle array at scattered places (the walks' most frequent miss).
-  std::vector<Triangle> corners_;
+  std::vector<Triangle, detail::DefaultInitAllocator<Triangle>> corners_;
 };
 
 template <class Hit, class Keep>
