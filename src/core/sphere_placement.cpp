@@ -92,8 +92,7 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
     int k;  // step of minDot; -1 before the first hit
     double bestT;
     int seen;
-    int guess;        // a step the ray's answer is expected at or below, or -1 (see the walk below)
-    double guessTau;  // tau_guess, or +inf without a guess
+    int guess;  // a step the ray's answer is expected at or below, or -1 (see the walk below)
     Hit kept[kKeep];
     // Back to no hits and no guess.
     void reset() {
@@ -102,7 +101,6 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
       bestT = std::numeric_limits<double>::infinity();
       seen = 0;
       guess = -1;
-      guessTau = std::numeric_limits<double>::infinity();
     }
     void rebest() {
       const double tau = kTau0 + kTauStep * k;
@@ -117,6 +115,27 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
     constexpr int W = TriangleBvh::kPacket;
     Ray rays[W];
     Vec3 origins[W], dirs[W];
+    // Each ray's cull (see PacketCull): a subtree matters only if its normals can go below tau_guess
+    // and either below tau_{k-1} (a lower step) or below tau_k nearer than the best hit at step k;
+    // before the first hit (and once the hit buffer overflowed) nothing but the guess skips.
+    PacketCull cull;
+    auto setCull = [&](int r) {
+      const Ray& ray = rays[r];
+      for (int k = 0; k < 3; ++k) cull.axis[k][r] = ray.normal[k];
+      cull.cap[r] = ray.guess >= 0 ? kTau0 + kTauStep * ray.guess : std::numeric_limits<double>::infinity();
+      if (ray.k < 0 || ray.seen > kKeep) {
+        cull.below[r] = std::numeric_limits<double>::infinity();
+        return;
+      }
+      cull.below[r] = ray.k >= 1 ? kTau0 + kTauStep * (ray.k - 1) : -std::numeric_limits<double>::infinity();
+      cull.nearBelow[r] = kTau0 + kTauStep * ray.k;
+      cull.within[r] = ray.bestT;
+    };
+    for (int r = 0; r < W; ++r) {  // lanes past a packet's count stay defined (and masked out)
+      rays[r].normal = Vec3::Zero();
+      rays[r].reset();
+      setCull(r);
+    }
     auto hit = [&](int r, std::uint32_t tri, double dist) {
       Ray& ray = rays[r];
       if (tri == ray.triangle || dist <= minT) return;
@@ -129,18 +148,12 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
         if (step != ray.k) {
           ray.k = step;
           ray.rebest();
+          setCull(r);
           return;
         }
       }
       if (ray.k >= 0 && dot < kTau0 + kTauStep * ray.k) ray.bestT = std::min(ray.bestT, dist);
-    };
-    auto keep = [&](int r, const TriangleBvh::Node& node, double entry) {
-      const Ray& ray = rays[r];
-      const double lower = TriangleBvh::minDot(node, ray.normal) - 1e-9;
-      if (!(lower < ray.guessTau)) return false;  // cannot go below the guessed step
-      if (ray.k < 0 || ray.seen > kKeep) return true;  // nothing to compare with yet, or the buffer overflowed
-      if (ray.k >= 1 && lower < kTau0 + kTauStep * (ray.k - 1)) return true;
-      return lower < kTau0 + kTauStep * ray.k && entry <= ray.bestT;
+      setCull(r);
     };
     // The answer of a walked ray: the nearest hit with dot < tau_k (lowest index on ties).
     auto finish = [&](int r) {
@@ -194,19 +207,20 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
         }
         for (int r = 0; r < count; ++r) {
           rays[r].guess = guess;
-          rays[r].guessTau = guess >= 0 ? kTau0 + kTauStep * guess : std::numeric_limits<double>::infinity();
+          setCull(r);
         }
-        bvh.forEachPacketHit(origins, dirs, count, hit, keep);
+        bvh.forEachPacketHit(origins, dirs, count, cull, hit);
         int highest = -1;
         for (int r = 0; r < count; ++r) {
           Ray& ray = rays[r];
           if (ray.guess >= 0 && (ray.k < 0 || ray.k > ray.guess)) {
             // Nothing below tau_guess: the answer may lie in a skipped subtree. Walk again without the guess.
             ray.reset();
+            setCull(r);
             double all = std::numeric_limits<double>::infinity();
             bvh.forEachRayHit(
                 origins[r], dirs[r], all, [&](std::uint32_t tri, double dist) { hit(r, tri, dist); },
-                [&](const TriangleBvh::Node& node, double entry) { return keep(r, node, entry); });
+                [&](const TriangleBvh::Node& node, double entry) { return TriangleBvh::keeps(cull, r, node, entry); });
           }
           highest = std::max(highest, ray.k);
           finish(r);

@@ -438,33 +438,47 @@ bool packetAvx2() {
   return has && !avx2Off.load(std::memory_order_relaxed);
 }
 
-__attribute__((target("avx2"))) void packetEnterAvx2(const float* const lo[2], const float* const hi[2],
-                                                    const double* o, const double* inv, unsigned active,
-                                                    double* const entry[2], unsigned mask[2]) {
+__attribute__((target("avx2"))) void packetChildrenAvx2(const float* const lo[2], const float* const hi[2],
+                                                       const float* const nlo[2], const float* const nhi[2],
+                                                       const double* o, const double* inv, const PacketCull& cull,
+                                                       unsigned active, double* const entry[2], unsigned mask[2]) {
   constexpr int W = TriangleBvh::kPacket;
   static_assert(W == 16, "four registers of four rays");
   for (int c = 0; c < 2; ++c) {
     unsigned m = 0;
     for (int h = 0; h < W; h += 4) {
       if (!((active >> h) & 0xFu)) continue;  // the active rays of a packet are mostly neighbours
+      // The box test as forEachRayHit's; the normals' lower bound as TriangleBvh::minDot's sum, in its
+      // order (std::min(x, y) is min_pd(y, x)), less the slack; then PacketCull::keeps.
       __m256d t0 = _mm256_setzero_pd(), t1 = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+      __m256d lower = _mm256_setzero_pd();
       for (int k = 0; k < 3; ++k) {
         const __m256d ok = _mm256_loadu_pd(o + k * W + h), ik = _mm256_loadu_pd(inv + k * W + h);
         const __m256d a = _mm256_mul_pd(_mm256_sub_pd(_mm256_set1_pd(lo[c][k]), ok), ik);
         const __m256d b = _mm256_mul_pd(_mm256_sub_pd(_mm256_set1_pd(hi[c][k]), ok), ik);
         t0 = _mm256_max_pd(_mm256_min_pd(a, b), t0);
         t1 = _mm256_min_pd(_mm256_max_pd(a, b), t1);
+        const __m256d mk = _mm256_load_pd(cull.axis[k] + h);
+        const __m256d x = _mm256_mul_pd(mk, _mm256_set1_pd(nlo[c][k]));
+        const __m256d y = _mm256_mul_pd(mk, _mm256_set1_pd(nhi[c][k]));
+        lower = _mm256_add_pd(lower, _mm256_min_pd(y, x));
       }
+      lower = _mm256_sub_pd(lower, _mm256_set1_pd(PacketCull::kSlack));
       _mm256_storeu_pd(entry[c] + h, t0);
-      m |= static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(t0, t1, _CMP_LE_OQ))) << h;
+      const __m256d near = _mm256_and_pd(_mm256_cmp_pd(lower, _mm256_load_pd(cull.nearBelow + h), _CMP_LT_OQ),
+                                         _mm256_cmp_pd(t0, _mm256_load_pd(cull.within + h), _CMP_LE_OQ));
+      const __m256d keeps =
+          _mm256_and_pd(_mm256_cmp_pd(lower, _mm256_load_pd(cull.cap + h), _CMP_LT_OQ),
+                        _mm256_or_pd(_mm256_cmp_pd(lower, _mm256_load_pd(cull.below + h), _CMP_LT_OQ), near));
+      m |= static_cast<unsigned>(_mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(t0, t1, _CMP_LE_OQ), keeps))) << h;
     }
     mask[c] = m & active;
   }
 }
 #else
 bool packetAvx2() { return false; }
-void packetEnterAvx2(const float* const*, const float* const*, const double*, const double*, unsigned, double* const*,
-                     unsigned*) {}
+void packetChildrenAvx2(const float* const*, const float* const*, const float* const*, const float* const*,
+                        const double*, const double*, const PacketCull&, unsigned, double* const*, unsigned*) {}
 #endif
 
 }  // namespace detail

@@ -142,24 +142,28 @@ TEST(TriangleBvh, ShrinkingTMaxPrunesFartherHits) {
   EXPECT_GT(rays, 100u);
 }
 
-// Packets of rays: each ray gets exactly its own brute-force hits, and a per-ray keep() that prunes
-// by entry distance still leaves every hit nearer than that ray's limit (a keep answered for the
-// wrong ray would lose some). Coherent packets (neighbouring triangles' inward normals, as the
-// placement casts them) and incoherent ones (random rays), of every size up to kPacket.
+// Packets of rays: each ray gets only its own brute-force hits (the same t), and every hit its cull
+// asks for: n . m < cap and (n . m < below, or n . m < nearBelow no farther than within), with m, cap,
+// below, nearBelow and within drawn per ray (a cull read for the wrong ray would lose some). Half of the
+// packets use the cull as a plain distance limit. Coherent packets (neighbouring triangles' inward
+// normals, as the placement casts them) and incoherent ones (random rays), of every size up to kPacket.
+// A static cull, so what a ray must get is known beforehand.
 void checkPackets(const TriangleMesh& mesh, int packets, std::uint64_t seed) {
   const TriangleBvh bvh(mesh, 4, 2);
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> g(0, 1);
   std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double inf = std::numeric_limits<double>::infinity();
   const auto randomOrigins = uniformProbes(mesh, packets * TriangleBvh::kPacket, 0.1 * mesh.diagonal(), seed);
-  std::size_t total = 0, pruned = 0;
+  std::size_t total = 0, pruned = 0, prunedByNormal = 0;
   for (int p = 0; p < packets; ++p) {
     const int count = 1 + p % TriangleBvh::kPacket;
     const bool coherent = p % 3 != 2;
+    const bool byNormal = p % 4 >= 2;
     Vec3 origins[TriangleBvh::kPacket], dirs[TriangleBvh::kPacket];
-    double limit[TriangleBvh::kPacket];
+    PacketCull cull;
     const std::size_t start = (std::size_t(p) * 37) % mesh.size();
-    for (int r = 0; r < count; ++r) {
+    for (int r = 0; r < TriangleBvh::kPacket; ++r) {
       const std::uint32_t t = bvh.order()[(start + r) % mesh.size()];
       if (coherent && !mesh.normals[t].isZero(0.0)) {
         origins[r] = mesh.centroid(t);
@@ -168,20 +172,28 @@ void checkPackets(const TriangleMesh& mesh, int packets, std::uint64_t seed) {
         origins[r] = randomOrigins[std::size_t(p) * TriangleBvh::kPacket + r];
         dirs[r] = Vec3(g(rng), g(rng), g(rng));
       }
-      limit[r] = p % 2 ? std::numeric_limits<double>::infinity() : u(rng) * mesh.diagonal();
+      const Vec3 m = byNormal ? Vec3(-dirs[r].normalized()) : Vec3(g(rng), g(rng), g(rng)).normalized();
+      for (int k = 0; k < 3; ++k) cull.axis[k][r] = m[k];
+      cull.within[r] = p % 2 ? inf : u(rng) * mesh.diagonal();
+      if (byNormal) {
+        cull.cap[r] = -1.0 + 2.0 * u(rng);
+        cull.below[r] = -1.0 + 1.5 * u(rng);
+        cull.nearBelow[r] = cull.below[r] + 0.5 * u(rng);
+      } else {
+        cull.cap[r] = inf;
+        cull.below[r] = -inf;
+        cull.nearBelow[r] = inf;
+      }
     }
     std::vector<std::map<std::uint32_t, double>> got(count);
-    bvh.forEachPacketHit(
-        origins, dirs, count,
-        [&](int r, std::uint32_t t, double dist) {
-          ASSERT_GE(r, 0);
-          ASSERT_LT(r, count);
-          EXPECT_EQ(got[r].count(t), 0u) << "triangle reported twice";
-          got[r][t] = dist;
-        },
-        [&](int r, const TriangleBvh::Node&, double entry) { return entry <= limit[r]; });
+    bvh.forEachPacketHit(origins, dirs, count, cull, [&](int r, std::uint32_t t, double dist) {
+      ASSERT_GE(r, 0);
+      ASSERT_LT(r, count);
+      EXPECT_EQ(got[r].count(t), 0u) << "triangle reported twice";
+      got[r][t] = dist;
+    });
     for (int r = 0; r < count; ++r) {
-      std::size_t within = 0;
+      const Vec3 m(cull.axis[0][r], cull.axis[1][r], cull.axis[2][r]);
       for (std::size_t t = 0; t < mesh.size(); ++t) {
         double dist;
         const bool hits = rayTriangle(origins[r], dirs[r], mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), dist);
@@ -193,19 +205,21 @@ void checkPackets(const TriangleMesh& mesh, int packets, std::uint64_t seed) {
         if (it != got[r].end()) {
           ASSERT_EQ(it->second, dist) << "packet " << p << " ray " << r;
         }
-        if (dist <= limit[r]) {
-          ++within;
+        const double dot = mesh.normals[t].dot(m);
+        if (dot < cull.cap[r] && (dot < cull.below[r] || (dot < cull.nearBelow[r] && dist <= cull.within[r]))) {
+          ++total;
           ASSERT_TRUE(it != got[r].end()) << "packet " << p << " ray " << r << ": hit on " << t << " at " << dist
-                                          << " within the limit " << limit[r] << " missed";
+                                          << " (n.m " << dot << ") that the cull asks for missed";
         } else if (it == got[r].end()) {
           ++pruned;
+          if (byNormal) ++prunedByNormal;
         }
       }
-      total += within;
     }
   }
   EXPECT_GT(total, std::size_t(packets)) << "the rays must hit something";
-  EXPECT_GT(pruned, 0u) << "the limits must prune something, or the keep() test proves nothing";
+  EXPECT_GT(pruned, 0u) << "the cull must skip something, or the test proves nothing";
+  EXPECT_GT(prunedByNormal, 0u) << "the normal bounds must skip something, or the test proves nothing";
 }
 
 TEST(TriangleBvh, PacketsGetEveryHitOfEachRay) {

@@ -46,16 +46,43 @@ struct DefaultInitAllocator : std::allocator<T> {
 
 /** \brief Whether forEachPacketHit uses AVX2: the CPU runs it (checked once) and it is not turned off. */
 bool packetAvx2();
-/** \brief Turns the AVX2 box test off (or back on where the CPU has it), so tests cover both forms. */
+/** \brief Turns the AVX2 form off (or back on where the CPU has it), so tests cover both forms. */
 void usePacketAvx2(bool on);
+}  // namespace detail
+
 /**
- * \brief forEachPacketHit's box test of two boxes (lo[c], hi[c]) against the rays of active with AVX2
- * (four rays per register, groups of four without an active ray skipped), the same values as its SSE2
- * form: o and inv are [3][16] row-major, entry[c] gets the entry distances into box c (of the groups
- * tested) and mask[c] the active rays that meet it. The caller checks packetAvx2().
+ * \brief What a packet walk (TriangleBvh::forEachPacketHit) may skip, per ray r of the packet: it visits
+ * a subtree only when the subtree may hold a triangle with unit normal n such that n . m < cap[r] and
+ * either n . m < below[r], or n . m < nearBelow[r] with the ray entering the subtree's box no farther
+ * than within[r] (m = axis[.][r]; "may" by the subtree's bounds of its normals, less kSlack against
+ * rounding). cap = below = +inf visits everything the ray meets; cap = +inf, below = -inf and
+ * nearBelow = +inf make within a plain distance limit. The walk reads the arrays afresh after every
+ * hit it reports, so the hit callback may change them.
  */
-void packetEnterAvx2(const float* const lo[2], const float* const hi[2], const double* o, const double* inv,
-                     unsigned active, double* const entry[2], unsigned mask[2]);
+struct PacketCull {
+  static constexpr int kRays = 16;
+  static constexpr double kSlack = 1e-9;
+  alignas(32) double axis[3][kRays];
+  alignas(32) double cap[kRays];
+  alignas(32) double below[kRays];
+  alignas(32) double nearBelow[kRays];
+  alignas(32) double within[kRays];
+  /** \brief Whether ray r visits a subtree whose normals' lower bound (less kSlack) is lower, entered at entry. */
+  bool keeps(int r, double lower, double entry) const {
+    return lower < cap[r] && (lower < below[r] || (lower < nearBelow[r] && entry <= within[r]));
+  }
+};
+
+namespace detail {
+/**
+ * \brief forEachPacketHit's test of a node's two children with AVX2 (four rays per register, groups of
+ * four without an active ray skipped), the same values as the SSE2 and plain forms: the box test (o and
+ * inv are [3][16] row-major) and the cull. entry[c] gets the entry distances into child c (of the groups
+ * tested) and mask[c] the active rays that meet its box and pass the cull. The caller checks packetAvx2().
+ */
+void packetChildrenAvx2(const float* const lo[2], const float* const hi[2], const float* const nlo[2],
+                        const float* const nhi[2], const double* o, const double* inv, const PacketCull& cull,
+                        unsigned active, double* const entry[2], unsigned mask[2]);
 }  // namespace detail
 
 /**
@@ -105,18 +132,25 @@ class TriangleBvh {
   void forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMax, Hit&& hit, Keep&& keep) const;
 
   /** \brief The most rays forEachPacketHit takes at once. */
-  static constexpr int kPacket = 16;
+  static constexpr int kPacket = PacketCull::kRays;
 
   /**
-   * \brief forEachRayHit with keep for up to kPacket rays at once, without a distance limit: one walk
-   * down the hierarchy for all of them, each node's children tested against every ray still in it.
-   * Meant for rays that start close together and point alike (the placement's neighbouring rays
-   * share most of their nodes). Calls hit(r, triangle, t) and keep(r, node, tEntry) with r the
-   * ray's index; each ray gets exactly the hits forEachRayHit gives it alone, in an order that may
+   * \brief Every hit of up to kPacket rays at once, without a distance limit, in the subtrees cull lets
+   * each ray into: one walk down the hierarchy for all of them, each node's two children tested against
+   * every ray still in it, box and cull together. Meant for rays that start close together and point
+   * alike (the placement's neighbouring rays share most of their nodes). Calls hit(r, triangle, t)
+   * with r the ray's index; hit may change cull, and nodes pushed before the change are tested again.
+   * Each ray gets every hit forEachRayHit gives it alone with keep = cull.keeps, in an order that may
    * differ. Allocates nothing.
    */
-  template <class Hit, class Keep>
-  void forEachPacketHit(const Vec3* origins, const Vec3* dirs, int count, Hit&& hit, Keep&& keep) const;
+  template <class Hit>
+  void forEachPacketHit(const Vec3* origins, const Vec3* dirs, int count, const PacketCull& cull, Hit&& hit) const;
+
+  /** \brief cull.keeps for ray r at node entered at entry (the form forEachRayHit's keep takes). */
+  static bool keeps(const PacketCull& cull, int r, const Node& node, double entry) {
+    const Vec3 m(cull.axis[0][r], cull.axis[1][r], cull.axis[2][r]);
+    return cull.keeps(r, minDot(node, m) - PacketCull::kSlack, entry);
+  }
 
   /** \brief Lower bound of n . m over the unit normals n of a node's triangles. */
   static double minDot(const Node& node, const Vec3& m) {
@@ -206,8 +240,9 @@ void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMa
   }
 }
 
-template <class Hit, class Keep>
-void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int count, Hit&& hit, Keep&& keep) const {
+template <class Hit>
+void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int count, const PacketCull& cull,
+                                   Hit&& hit) const {
   constexpr int W = kPacket;
   static_assert(W % 2 == 0 && W < 32, "rays go two per register, and a mask bit each");
   if (nodes_.empty() || count <= 0) return;
@@ -262,27 +297,35 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
 #endif
     return mask;
   };
-  // Where the CPU runs AVX2 the child boxes are tested by one out-of-line call, four rays per register.
+  // The rays of active that pass the cull at node (entered at entry[r]).
+  auto culled = [&](const Node& node, const double* entry, unsigned active) {
+    unsigned mask = 0;
+    for (unsigned m = active; m; m &= m - 1) {
+      const int r = __builtin_ctz(m);
+      if (keeps(cull, r, node, entry[r])) mask |= 1u << r;
+    }
+    return mask;
+  };
+  // Where the CPU runs AVX2 both children are tested by one out-of-line call, four rays per register.
   const bool avx2 = W == 16 && detail::packetAvx2();
   struct Item {
     std::uint32_t node;
-    unsigned mask;
+    unsigned mask;     // the rays that met the node's box and passed the cull when it was pushed
+    std::uint64_t hits;  // hits reported before it was pushed: if none since, the cull is unchanged
     double t[W];
   };
+  std::uint64_t hits = 0;
   Item stack[128];  // at most one pending entry per level, as in forEachRayHit
   int top = 0;
   stack[0].node = 0;
   stack[0].mask = enter(nodes_[0], stack[0].t) & ((1u << count) - 1);
+  stack[0].hits = ~std::uint64_t{0};  // not culled yet
   std::fill(stack[0].t, stack[0].t + W, 0.0);
   if (stack[0].mask) top = 1;
   while (top > 0) {
     const Item item = stack[--top];  // a copy: reading the slot in place while pushing is slower
     const Node& node = nodes_[item.node];
-    unsigned mask = 0;
-    for (unsigned m = item.mask; m; m &= m - 1) {
-      const int r = __builtin_ctz(m);
-      if (keep(r, node, item.t[r])) mask |= 1u << r;
-    }
+    const unsigned mask = item.hits == hits ? item.mask : culled(node, item.t, item.mask);
     if (mask == 0) continue;
     if (node.count > 0) {
       for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
@@ -292,7 +335,10 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
         for (unsigned m = mask; m; m &= m - 1) {
           const int r = __builtin_ctz(m);
           double t;
-          if (rayTriangle(origins[r], dirs[r], a, b, c, t)) hit(r, tri, t);
+          if (rayTriangle(origins[r], dirs[r], a, b, c, t)) {
+            ++hits;
+            hit(r, tri, t);
+          }
         }
       }
       continue;
@@ -300,17 +346,21 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
     Item l, r;
     l.node = item.node + 1;
     r.node = node.first;
+    l.hits = r.hits = hits;
+    const Node &ln = nodes_[l.node], &rn = nodes_[r.node];
     if (avx2) {
-      const float* const lo[2] = {nodes_[l.node].lo, nodes_[r.node].lo};
-      const float* const hi[2] = {nodes_[l.node].hi, nodes_[r.node].hi};
+      const float* const lo[2] = {ln.lo, rn.lo};
+      const float* const hi[2] = {ln.hi, rn.hi};
+      const float* const nlo[2] = {ln.normalLo, rn.normalLo};
+      const float* const nhi[2] = {ln.normalHi, rn.normalHi};
       double* const entry[2] = {l.t, r.t};
       unsigned masks[2];
-      detail::packetEnterAvx2(lo, hi, &o[0][0], &inv[0][0], mask, entry, masks);
+      detail::packetChildrenAvx2(lo, hi, nlo, nhi, &o[0][0], &inv[0][0], cull, mask, entry, masks);
       l.mask = masks[0];
       r.mask = masks[1];
     } else {
-      l.mask = enter(nodes_[l.node], l.t) & mask;
-      r.mask = enter(nodes_[r.node], r.t) & mask;
+      l.mask = culled(ln, l.t, enter(ln, l.t) & mask);
+      r.mask = culled(rn, r.t, enter(rn, r.t) & mask);
     }
     // The order forEachRayHit takes for the first ray that meets both children (nearer first, a child
     // containing the origin last); the other rays follow it.
