@@ -475,8 +475,69 @@ __attribute__((target("avx2"))) void packetChildrenAvx2(const float* const lo[2]
     mask[c] = m & active;
   }
 }
+
+namespace {
+// (x0 y0 + x1 y1) + x2 y2, Eigen's order for a 3-vector dot product.
+__attribute__((target("avx2"))) inline __m256d dot3(__m256d x0, __m256d y0, __m256d x1, __m256d y1, __m256d x2,
+                                                     __m256d y2) {
+  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(x0, y0), _mm256_mul_pd(x1, y1)), _mm256_mul_pd(x2, y2));
+}
+}  // namespace
+
+__attribute__((target("avx2"))) unsigned packetTriangleAvx2(const double* a, const double* b, const double* c,
+                                                           const double* o, const double* d, unsigned active,
+                                                           double* t) {
+  constexpr int W = TriangleBvh::kPacket;
+  static_assert(W == 16, "four registers of four rays");
+  // rayTriangle's steps (Eigen's cross products by component, its dot products as (x + y) + z, no fused
+  // multiply-add), every lane computed and the early returns turned into masks.
+  double e1[3], e2[3];
+  for (int k = 0; k < 3; ++k) {
+    e1[k] = b[k] - a[k];
+    e2[k] = c[k] - a[k];
+  }
+  const __m256d e1x = _mm256_set1_pd(e1[0]), e1y = _mm256_set1_pd(e1[1]), e1z = _mm256_set1_pd(e1[2]);
+  const __m256d e2x = _mm256_set1_pd(e2[0]), e2y = _mm256_set1_pd(e2[1]), e2z = _mm256_set1_pd(e2[2]);
+  const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
+  const __m256d inf = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+  const __m256d sign = _mm256_set1_pd(-0.0);
+  unsigned m = 0;
+  for (int h = 0; h < W; h += 4) {
+    if (!((active >> h) & 0xFu)) continue;
+    const __m256d dx = _mm256_loadu_pd(d + h), dy = _mm256_loadu_pd(d + W + h), dz = _mm256_loadu_pd(d + 2 * W + h);
+    const __m256d pvx = _mm256_sub_pd(_mm256_mul_pd(dy, e2z), _mm256_mul_pd(dz, e2y));
+    const __m256d pvy = _mm256_sub_pd(_mm256_mul_pd(dz, e2x), _mm256_mul_pd(dx, e2z));
+    const __m256d pvz = _mm256_sub_pd(_mm256_mul_pd(dx, e2y), _mm256_mul_pd(dy, e2x));
+    const __m256d det = dot3(e1x, pvx, e1y, pvy, e1z, pvz);
+    // det != 0 and finite
+    __m256d ok = _mm256_and_pd(_mm256_cmp_pd(det, zero, _CMP_NEQ_OQ),
+                               _mm256_cmp_pd(_mm256_andnot_pd(sign, det), inf, _CMP_LT_OQ));
+    const __m256d inv = _mm256_div_pd(one, det);
+    const __m256d tvx = _mm256_sub_pd(_mm256_loadu_pd(o + h), _mm256_set1_pd(a[0]));
+    const __m256d tvy = _mm256_sub_pd(_mm256_loadu_pd(o + W + h), _mm256_set1_pd(a[1]));
+    const __m256d tvz = _mm256_sub_pd(_mm256_loadu_pd(o + 2 * W + h), _mm256_set1_pd(a[2]));
+    const __m256d u = _mm256_mul_pd(dot3(tvx, pvx, tvy, pvy, tvz, pvz), inv);
+    // not (u < 0 or u > 1): a NaN passes, as in rayTriangle
+    ok = _mm256_and_pd(ok, _mm256_and_pd(_mm256_cmp_pd(u, zero, _CMP_NLT_UQ), _mm256_cmp_pd(u, one, _CMP_NGT_UQ)));
+    const __m256d qvx = _mm256_sub_pd(_mm256_mul_pd(tvy, e1z), _mm256_mul_pd(tvz, e1y));
+    const __m256d qvy = _mm256_sub_pd(_mm256_mul_pd(tvz, e1x), _mm256_mul_pd(tvx, e1z));
+    const __m256d qvz = _mm256_sub_pd(_mm256_mul_pd(tvx, e1y), _mm256_mul_pd(tvy, e1x));
+    const __m256d v = _mm256_mul_pd(dot3(dx, qvx, dy, qvy, dz, qvz), inv);
+    ok = _mm256_and_pd(ok, _mm256_and_pd(_mm256_cmp_pd(v, zero, _CMP_NLT_UQ),
+                                         _mm256_cmp_pd(_mm256_add_pd(u, v), one, _CMP_NGT_UQ)));
+    const __m256d tt = _mm256_mul_pd(dot3(e2x, qvx, e2y, qvy, e2z, qvz), inv);
+    ok = _mm256_and_pd(ok, _mm256_cmp_pd(tt, zero, _CMP_GT_OQ));
+    _mm256_store_pd(t + h, tt);
+    m |= static_cast<unsigned>(_mm256_movemask_pd(ok)) << h;
+  }
+  return m & active;
+}
 #else
 bool packetAvx2() { return false; }
+unsigned packetTriangleAvx2(const double*, const double*, const double*, const double*, const double*, unsigned,
+                            double*) {
+  return 0;
+}
 void packetChildrenAvx2(const float* const*, const float* const*, const float* const*, const float* const*,
                         const double*, const double*, const PacketCull&, unsigned, double* const*, unsigned*) {}
 #endif

@@ -234,4 +234,67 @@ TEST(TriangleBvh, PacketsGetEveryHitOfEachRay) {
   detail::usePacketAvx2(true);
 }
 
+// The AVX2 triangle test against rayTriangle, bit for bit, on the cases where a different order of
+// operations or a missed NaN would show: rays through vertices and edges of triangles on an integer grid
+// (u, v, u + v exactly 0 or 1), degenerate triangles, directions with zero components, coordinates that
+// overflow the determinant (inf, NaN) or underflow it, and every subset of active rays.
+TEST(TriangleBvh, PacketTriangleTestIsRayTriangleBitForBit) {
+  if (!detail::packetAvx2()) GTEST_SKIP() << "the CPU has no AVX2";
+  constexpr int W = TriangleBvh::kPacket;
+  std::mt19937_64 rng(21);
+  std::uniform_int_distribution<int> cell(-3, 3), pick(0, 7), lane(0, (1 << W) - 1);
+  std::normal_distribution<double> g(0, 1);
+  const double scales[] = {1.0, 1e-3, 1e-160, 1e160, 1e300};
+  std::size_t hits = 0, misses = 0, compared = 0;
+  for (int round = 0; round < 20000; ++round) {
+    const double scale = scales[round % 5];
+    Vec3 v[3];
+    for (Vec3& x : v) x = Vec3(cell(rng), cell(rng), cell(rng)) * scale;
+    if (round % 7 == 0) v[2] = v[0] + 2.0 * (v[1] - v[0]);  // collinear
+    if (round % 11 == 0) v[1] = v[0];                      // two equal vertices
+    alignas(32) double o[3][W], d[3][W];
+    for (int r = 0; r < W; ++r) {
+      // Aimed at a vertex, an edge's midpoint, the centroid or a grid point, from a grid offset, or random.
+      Vec3 target;
+      switch (pick(rng)) {
+        case 0: target = v[r % 3]; break;
+        case 1: target = 0.5 * (v[r % 3] + v[(r + 1) % 3]); break;
+        case 2: target = (v[0] + v[1] + v[2]) / 3.0; break;
+        case 3: target = Vec3(cell(rng), cell(rng), cell(rng)) * scale; break;
+        default: target = v[0] + g(rng) * (v[1] - v[0]) + g(rng) * (v[2] - v[0]); break;
+      }
+      Vec3 from = target + Vec3(cell(rng), cell(rng), cell(rng)) * scale;
+      if (r % 5 == 0) from = target + Vec3(0, 0, 2) * scale;  // axis-aligned: two zero components
+      if (r % 7 == 3) from = target + Vec3(g(rng), g(rng), g(rng)) * 1e300;  // u, v overflow to inf or NaN
+      Vec3 dir = r % 9 == 8 ? Vec3(g(rng), g(rng), g(rng)) : Vec3(target - from);
+      for (int k = 0; k < 3; ++k) {
+        o[k][r] = from[k];
+        d[k][r] = dir[k];
+      }
+    }
+    const unsigned active = round % 3 ? lane(rng) : (1u << W) - 1;
+    alignas(32) double t[W];
+    const unsigned got = detail::packetTriangleAvx2(v[0].data(), v[1].data(), v[2].data(), &o[0][0], &d[0][0], active, t);
+    ASSERT_EQ(got & ~active, 0u) << "only active rays hit";
+    for (int r = 0; r < W; ++r) {
+      if (!((active >> r) & 1u)) continue;
+      double expect;
+      const bool hit = rayTriangle(Vec3(o[0][r], o[1][r], o[2][r]), Vec3(d[0][r], d[1][r], d[2][r]), v[0], v[1], v[2], expect);
+      ++compared;
+      ASSERT_EQ(hit, bool((got >> r) & 1u)) << "round " << round << " ray " << r;
+      if (hit) {
+        ++hits;
+        std::uint64_t a, b;
+        std::memcpy(&a, &expect, 8);
+        std::memcpy(&b, &t[r], 8);
+        ASSERT_EQ(a, b) << "round " << round << " ray " << r << ": t " << expect << " vs " << t[r];
+      } else {
+        ++misses;
+      }
+    }
+  }
+  EXPECT_GT(hits, compared / 10) << "the cases must hit often, or the distances are barely compared";
+  EXPECT_GT(misses, compared / 10);
+}
+
 }  // namespace

@@ -83,6 +83,15 @@ namespace detail {
 void packetChildrenAvx2(const float* const lo[2], const float* const hi[2], const float* const nlo[2],
                         const float* const nhi[2], const double* o, const double* inv, const PacketCull& cull,
                         unsigned active, double* const entry[2], unsigned mask[2]);
+
+/**
+ * \brief rayTriangle of one triangle (vertices a, b, c) against the active rays of a packet with AVX2, four
+ * rays per register (groups of four without an active ray skipped): the same operations in the same
+ * order, so the same decisions and distances bit for bit. o and d are [3][16] row-major origins and
+ * directions; returns the active rays that hit, with their distances in t. The caller checks packetAvx2().
+ */
+unsigned packetTriangleAvx2(const double* a, const double* b, const double* c, const double* o, const double* d,
+                            unsigned active, double* t);
 }  // namespace detail
 
 /**
@@ -249,13 +258,14 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
   count = std::min(count, W);
   // Per axis and ray (rays past count copy the first and stay masked out); a zero direction
   // component becomes a tiny one of the same sign, as in forEachRayHit.
-  double o[3][W], inv[3][W];
+  alignas(32) double o[3][W], inv[3][W], dv[3][W];
   for (int r = 0; r < W; ++r)
     for (int k = 0; k < 3; ++k) {
       const int s = r < count ? r : 0;
       const double d = dirs[s][k] != 0.0 ? dirs[s][k] : std::copysign(1e-300, dirs[s][k]);
       inv[k][r] = 1.0 / d;
       o[k][r] = origins[s][k];
+      dv[k][r] = dirs[s][k];
     }
   // Entry distance of every ray into a node's box and the mask of the rays that meet it: the same
   // values as forEachRayHit's test (the near slab is the smaller product, there being no NaN), two
@@ -332,6 +342,15 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
         const std::uint32_t tri = order_[i];
         const Triangle& v = corners_[i];
         const Vec3 &a = mesh_.vertices[v[0]], &b = mesh_.vertices[v[1]], &c = mesh_.vertices[v[2]];
+        if (avx2) {  // the same tests, four rays at a time, hits reported in the same order
+          alignas(32) double t[W];
+          const unsigned got = detail::packetTriangleAvx2(a.data(), b.data(), c.data(), &o[0][0], &dv[0][0], mask, t);
+          for (unsigned m = got; m; m &= m - 1) {
+            ++hits;
+            hit(__builtin_ctz(m), tri, t[__builtin_ctz(m)]);
+          }
+          continue;
+        }
         for (unsigned m = mask; m; m &= m - 1) {
           const int r = __builtin_ctz(m);
           double t;
