@@ -370,15 +370,21 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
   const std::size_t n = mesh.size();
   if (n == 0) return;
   // Every vertex rounded outward once (a vertex is shared by about six triangles), then each
-  // triangle's box from its three corners.
+  // triangle's box from its three corners. The boxes are widened by 2^-32 of the largest coordinate
+  // first: the slab tests (in double) and rayTriangle round, so without it a ray through a box's face,
+  // edge or corner -- a ray aimed at a vertex, a coordinate that is a float already -- could miss the box
+  // of a triangle that rayTriangle says it hits.
   const std::size_t nv = mesh.vertices.size();
+  double bound = 0.0;
+  for (const Vec3& v : mesh.vertices) bound = std::max(bound, v.cwiseAbs().maxCoeff());
+  const double margin = std::ldexp(bound, -32);
   std::vector<float, detail::DefaultInitAllocator<float>> rounded(6 * nv);  // per vertex: down x y z, up x y z
   PrimArray prims(n);
   auto roundVertices = [&](std::size_t begin, std::size_t end) {
     for (std::size_t v = begin; v < end; ++v)
       for (int k = 0; k < 3; ++k) {
-        rounded[6 * v + k] = down(mesh.vertices[v][k]);
-        rounded[6 * v + 3 + k] = up(mesh.vertices[v][k]);
+        rounded[6 * v + k] = down(mesh.vertices[v][k] - margin);
+        rounded[6 * v + 3 + k] = up(mesh.vertices[v][k] + margin);
       }
   };
   auto fill = [&](std::size_t begin, std::size_t end) {
@@ -410,6 +416,9 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
   }
   decltype(rounded)().swap(rounded);
   buildNodes(mesh, prims, leafSize, parallel, nodes_);
+  if (!nodes_.empty())
+    for (int k = 0; k < 3; ++k)
+      sceneBound_ = std::max({sceneBound_, std::fabs(double(nodes_[0].lo[k])), std::fabs(double(nodes_[0].hi[k]))});
   order_.resize(n);
   corners_.resize(n);
   auto leafOrder = [&](std::size_t begin, std::size_t end) {
@@ -428,7 +437,75 @@ namespace detail {
 
 namespace {
 std::atomic<bool> avx2Off{false};
+
+// The smallest float >= x (x not NaN).
+inline float roundUp(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) < x) {  // f is finite: one step up
+    if (f == 0.0f) return std::numeric_limits<float>::denorm_min();
+    std::uint32_t bits;
+    std::memcpy(&bits, &f, 4);
+    bits = f > 0.0f ? bits + 1 : bits - 1;
+    std::memcpy(&f, &bits, 4);
+  }
+  return f;
+}
 }  // namespace
+
+// Why the float test keeps every node the double one keeps. With B = sceneBound + the largest origin
+// coordinate (both under 2^30) and every box widened by w = 2^-18 B on each side, a slab's numerator
+// (lo - w) - o in float is below lo - o by at least w/4 after the roundings of o, lo - w and the
+// difference (each at most 2^-24 B), and its product with the inverse direction (rounded once more, an
+// inverse between 2^-30 and 2^30) stays on the far side of the double product: the relative error
+// 2^-23 |lo - o| is under w/4. So every near distance in float is at most the double one and every far
+// distance at least it, entry <= exit holds whenever it holds in double, and the entry is a lower
+// bound. A direction component under 2^-30 (or zero, which the double test makes 1e-300) gets the
+// inverse +-2^120: the ray is then inside that slab in float whenever the double test can enter the
+// slab before the ray leaves the box along its largest component (at least 1/4, so the exit is within
+// 4 B) -- the double entry through that slab is at least 2^30 times the gap, the float gap is below
+// zero for any gap under w/4 -- and an exit through it is beyond every other exit. The normals' lower
+// bound in float differs from the double sum by at most 2^-22 (|m0| + |m1| + |m2|) (components of
+// normals at most 1): slack is twice that plus PacketCull::kSlack, and the thresholds round up.
+void PacketFloat::setCull(const PacketCull& cull, int r) {
+  double sum = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    axis[k][r] = static_cast<float>(cull.axis[k][r]);
+    sum += std::fabs(cull.axis[k][r]);
+  }
+  slack[r] = roundUp(sum * 0x1p-21 + 2.0 * PacketCull::kSlack);
+  cap[r] = roundUp(cull.cap[r]);
+  below[r] = roundUp(cull.below[r]);
+  nearBelow[r] = roundUp(cull.nearBelow[r]);
+  within[r] = roundUp(cull.within[r]);
+}
+
+bool PacketFloat::set(const double* origins, const double* dirs, const double* inverse, int count,
+                      double sceneBound, const PacketCull& cull) {
+  constexpr int W = PacketCull::kRays;
+  constexpr double kLimit = 1073741824.0;  // 2^30
+  double bound = sceneBound;
+  for (int r = 0; r < W; ++r) {
+    double largest = 0.0;
+    for (int k = 0; k < 3; ++k) {
+      bound = std::max(bound, std::fabs(origins[k * W + r]));
+      largest = std::max(largest, std::fabs(dirs[k * W + r]));
+    }
+    // NaN fails every test here
+    if (!(largest >= 0.25 && largest <= kLimit)) return false;
+  }
+  if (!(bound >= 1e-18 && bound <= kLimit)) return false;  // the widening stays a normal float
+  const double w = std::ldexp(bound, -18);
+  widen = roundUp(w);
+  for (int k = 0; k < 3; ++k)
+    for (int r = 0; r < W; ++r) {
+      o[k][r] = static_cast<float>(origins[k * W + r]);
+      const double d = dirs[k * W + r];
+      inv[k][r] = std::fabs(d) >= 1.0 / kLimit ? static_cast<float>(inverse[k * W + r])
+                                                : std::copysign(std::ldexp(1.0f, 120), float(inverse[k * W + r]));
+    }
+  for (int r = 0; r < W; ++r) setCull(cull, r < count ? r : 0);
+  return true;
+}
 
 void usePacketAvx2(bool on) { avx2Off = !on; }
 
@@ -471,6 +548,47 @@ __attribute__((target("avx2"))) void packetChildrenAvx2(const float* const lo[2]
           _mm256_and_pd(_mm256_cmp_pd(lower, _mm256_load_pd(cull.cap + h), _CMP_LT_OQ),
                         _mm256_or_pd(_mm256_cmp_pd(lower, _mm256_load_pd(cull.below + h), _CMP_LT_OQ), near));
       m |= static_cast<unsigned>(_mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(t0, t1, _CMP_LE_OQ), keeps))) << h;
+    }
+    mask[c] = m & active;
+  }
+}
+
+__attribute__((target("avx2"))) void packetChildrenAvx2f(const float* const lo[2], const float* const hi[2],
+                                                        const float* const nlo[2], const float* const nhi[2],
+                                                        const PacketFloat& f, unsigned active,
+                                                        double* const entry[2], unsigned mask[2]) {
+  constexpr int W = TriangleBvh::kPacket;
+  static_assert(W == 16, "two registers of eight rays");
+  for (int c = 0; c < 2; ++c) {
+    float wlo[3], whi[3];
+    for (int k = 0; k < 3; ++k) {
+      wlo[k] = lo[c][k] - f.widen;
+      whi[k] = hi[c][k] + f.widen;
+    }
+    unsigned m = 0;
+    for (int h = 0; h < W; h += 8) {
+      if (!((active >> h) & 0xFFu)) continue;
+      __m256 t0 = _mm256_setzero_ps(), t1 = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+      __m256 lower = _mm256_setzero_ps();
+      for (int k = 0; k < 3; ++k) {
+        const __m256 ok = _mm256_load_ps(f.o[k] + h), ik = _mm256_load_ps(f.inv[k] + h);
+        const __m256 a = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(wlo[k]), ok), ik);
+        const __m256 b = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(whi[k]), ok), ik);
+        t0 = _mm256_max_ps(_mm256_min_ps(a, b), t0);
+        t1 = _mm256_min_ps(_mm256_max_ps(a, b), t1);
+        const __m256 mk = _mm256_load_ps(f.axis[k] + h);
+        lower = _mm256_add_ps(lower, _mm256_min_ps(_mm256_mul_ps(mk, _mm256_set1_ps(nhi[c][k])),
+                                                   _mm256_mul_ps(mk, _mm256_set1_ps(nlo[c][k]))));
+      }
+      lower = _mm256_sub_ps(lower, _mm256_load_ps(f.slack + h));
+      _mm256_storeu_pd(entry[c] + h, _mm256_cvtps_pd(_mm256_castps256_ps128(t0)));
+      _mm256_storeu_pd(entry[c] + h + 4, _mm256_cvtps_pd(_mm256_extractf128_ps(t0, 1)));
+      const __m256 near = _mm256_and_ps(_mm256_cmp_ps(lower, _mm256_load_ps(f.nearBelow + h), _CMP_LT_OQ),
+                                        _mm256_cmp_ps(t0, _mm256_load_ps(f.within + h), _CMP_LE_OQ));
+      const __m256 keeps =
+          _mm256_and_ps(_mm256_cmp_ps(lower, _mm256_load_ps(f.cap + h), _CMP_LT_OQ),
+                        _mm256_or_ps(_mm256_cmp_ps(lower, _mm256_load_ps(f.below + h), _CMP_LT_OQ), near));
+      m |= static_cast<unsigned>(_mm256_movemask_ps(_mm256_and_ps(_mm256_cmp_ps(t0, t1, _CMP_LE_OQ), keeps))) << h;
     }
     mask[c] = m & active;
   }
@@ -534,6 +652,8 @@ __attribute__((target("avx2"))) unsigned packetTriangleAvx2(const double* a, con
 }
 #else
 bool packetAvx2() { return false; }
+void packetChildrenAvx2f(const float* const*, const float* const*, const float* const*, const float* const*,
+                         const PacketFloat&, unsigned, double* const*, unsigned*) {}
 unsigned packetTriangleAvx2(const double*, const double*, const double*, const double*, const double*, unsigned,
                             double*) {
   return 0;

@@ -32,7 +32,10 @@ void checkRays(const TriangleMesh& mesh, int rays, std::uint64_t seed, unsigned 
     const std::size_t t0 = std::size_t(i) % mesh.size();
     const bool fromCentroid = i % 2 == 0 && !mesh.normals[t0].isZero(0.0);
     const Vec3 origin = fromCentroid ? mesh.centroid(t0) : origins[i];
-    const Vec3 dir = fromCentroid ? Vec3(-mesh.normals[t0]) : Vec3(g(rng), g(rng), g(rng));
+    Vec3 dir = fromCentroid ? Vec3(-mesh.normals[t0]) : Vec3(g(rng), g(rng), g(rng));
+    // A quarter of the others are aimed at a vertex (hits on the corners of boxes, where rounding could
+    // lose a box that holds a hit).
+    if (!fromCentroid && i % 4 == 1) dir = mesh.vertex(t0, i % 3) - origin;
     const double tMaxInit = i % 3 == 0 ? 0.3 * mesh.diagonal() : std::numeric_limits<double>::infinity();
     std::map<std::uint32_t, double> expected, got;
     for (std::size_t t = 0; t < mesh.size(); ++t) {
@@ -155,17 +158,24 @@ void checkPackets(const TriangleMesh& mesh, int packets, std::uint64_t seed) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const double inf = std::numeric_limits<double>::infinity();
   const auto randomOrigins = uniformProbes(mesh, packets * TriangleBvh::kPacket, 0.1 * mesh.diagonal(), seed);
-  std::size_t total = 0, pruned = 0, prunedByNormal = 0;
+  std::size_t total = 0, pruned = 0, prunedByNormal = 0, tightLimits = 0;
   for (int p = 0; p < packets; ++p) {
     const int count = 1 + p % TriangleBvh::kPacket;
     const bool coherent = p % 3 != 2;
+    // Aimed packets: unit rays through a vertex or an edge's midpoint of a triangle, hits on the corners
+    // and faces of leaf boxes, where a test in float that is not widened enough loses nodes.
+    const bool aimed = p % 5 == 4;
     const bool byNormal = p % 4 >= 2;
     Vec3 origins[TriangleBvh::kPacket], dirs[TriangleBvh::kPacket];
     PacketCull cull;
     const std::size_t start = (std::size_t(p) * 37) % mesh.size();
     for (int r = 0; r < TriangleBvh::kPacket; ++r) {
       const std::uint32_t t = bvh.order()[(start + r) % mesh.size()];
-      if (coherent && !mesh.normals[t].isZero(0.0)) {
+      if (aimed) {
+        origins[r] = randomOrigins[std::size_t(p) * TriangleBvh::kPacket + r];
+        const Vec3 target = r % 2 ? mesh.vertex(t, r % 3) : Vec3(0.5 * (mesh.vertex(t, r % 3) + mesh.vertex(t, (r + 1) % 3)));
+        dirs[r] = (target - origins[r]).normalized();
+      } else if (coherent && !mesh.normals[t].isZero(0.0)) {
         origins[r] = mesh.centroid(t);
         dirs[r] = -mesh.normals[t];
       } else {
@@ -175,7 +185,24 @@ void checkPackets(const TriangleMesh& mesh, int packets, std::uint64_t seed) {
       const Vec3 m = byNormal ? Vec3(-dirs[r].normalized()) : Vec3(g(rng), g(rng), g(rng)).normalized();
       for (int k = 0; k < 3; ++k) cull.axis[k][r] = m[k];
       cull.within[r] = p % 2 ? inf : u(rng) * mesh.diagonal();
-      if (byNormal) {
+      // Tight packets: one brute-force hit of the ray sits exactly on every limit (n . m one step under
+      // cap and nearBelow, at the distance within), so a test that rounds a limit the wrong way loses it.
+      const bool tight = p % 7 == 3;
+      std::vector<std::pair<double, double>> own;  // (t, n . m) of the ray's hits
+      if (tight)
+        for (std::size_t t2 = 0; t2 < mesh.size(); ++t2) {
+          double dist;
+          if (rayTriangle(origins[r], dirs[r], mesh.vertex(t2, 0), mesh.vertex(t2, 1), mesh.vertex(t2, 2), dist))
+            own.emplace_back(dist, mesh.normals[t2].dot(m));
+        }
+      if (!own.empty()) {
+        const auto& h = own[std::size_t(u(rng) * own.size()) % own.size()];
+        cull.cap[r] = std::nextafter(h.second, inf);
+        cull.below[r] = h.second - 0.5;
+        cull.nearBelow[r] = std::nextafter(h.second, inf);
+        cull.within[r] = h.first;
+        ++tightLimits;
+      } else if (byNormal) {
         cull.cap[r] = -1.0 + 2.0 * u(rng);
         cull.below[r] = -1.0 + 1.5 * u(rng);
         cull.nearBelow[r] = cull.below[r] + 0.5 * u(rng);
@@ -220,6 +247,7 @@ void checkPackets(const TriangleMesh& mesh, int packets, std::uint64_t seed) {
   EXPECT_GT(total, std::size_t(packets)) << "the rays must hit something";
   EXPECT_GT(pruned, 0u) << "the cull must skip something, or the test proves nothing";
   EXPECT_GT(prunedByNormal, 0u) << "the normal bounds must skip something, or the test proves nothing";
+  EXPECT_GT(tightLimits, std::size_t(packets)) << "rays with a hit on their limits";
 }
 
 TEST(TriangleBvh, PacketsGetEveryHitOfEachRay) {
@@ -232,6 +260,103 @@ TEST(TriangleBvh, PacketsGetEveryHitOfEachRay) {
     checkPackets(loadMesh(clod_test::testData("cube.obj")), 100, 13);
   }
   detail::usePacketAvx2(true);
+}
+
+// The float child test against the double one, on boxes whose faces, edges or corners lie on the rays
+// and with every cull limit one step above the double test's value (within: exactly its entry): every
+// ray and child the double test keeps, the float test keeps, with an entry no greater. Directions with
+// zero and tiny components, scenes from 1e-6 to 1e6.
+TEST(TriangleBvh, FloatChildTestKeepsWhatTheDoubleTestKeeps) {
+  if (!detail::packetAvx2()) GTEST_SKIP() << "the CPU has no AVX2";
+  constexpr int W = TriangleBvh::kPacket;
+  std::mt19937_64 rng(23);
+  std::normal_distribution<double> g(0, 1);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double inf = std::numeric_limits<double>::infinity();
+  std::size_t kept = 0, tested = 0;
+  for (int round = 0; round < 20000; ++round) {
+    const double scale = std::pow(10.0, -6 + 12 * u(rng));
+    alignas(32) double o[3][W], d[3][W], inv[3][W];
+    for (int r = 0; r < W; ++r) {
+      Vec3 dir(g(rng), g(rng), g(rng));
+      if (r % 4 == 1) dir[r % 3] = 0.0;
+      if (r % 4 == 2) dir[(r + 1) % 3] = 1e-12 * dir[(r + 1) % 3];
+      dir.normalize();
+      for (int k = 0; k < 3; ++k) {
+        o[k][r] = scale * g(rng);
+        d[k][r] = dir[k];
+        const double dk = dir[k] != 0.0 ? dir[k] : std::copysign(1e-300, dir[k]);
+        inv[k][r] = 1.0 / dk;
+      }
+    }
+    // Two boxes through a point of one ray: the point on a face, an edge or a corner.
+    float lo[2][3], hi[2][3], nlo[2][3], nhi[2][3];
+    for (int c = 0; c < 2; ++c) {
+      const int r = int(u(rng) * W) % W;
+      const double t = scale * 2.0 * u(rng);
+      for (int k = 0; k < 3; ++k) {
+        const double q = o[k][r] + t * d[k][r];
+        const double size = scale * u(rng);
+        const int where = int(u(rng) * 3);  // the point at the low face, the high face, or inside
+        lo[c][k] = float(where == 0 ? q : where == 1 ? q - size : q - 0.5 * size);
+        hi[c][k] = float(where == 0 ? q + size : where == 1 ? q : q + 0.5 * size);
+        if (lo[c][k] > hi[c][k]) std::swap(lo[c][k], hi[c][k]);
+        const double n1 = 2.0 * u(rng) - 1.0, n2 = 2.0 * u(rng) - 1.0;
+        nlo[c][k] = float(std::min(n1, n2));
+        nhi[c][k] = round % 3 ? float(std::max(n1, n2)) : nlo[c][k];  // a third single normals
+      }
+    }
+    const unsigned active = (std::uniform_int_distribution<unsigned>(1, (1u << W) - 1))(rng);
+    PacketCull cull;
+    for (int r = 0; r < W; ++r) {
+      const Vec3 m = Vec3(g(rng), g(rng), g(rng)).normalized();
+      for (int k = 0; k < 3; ++k) cull.axis[k][r] = m[k];
+      cull.cap[r] = cull.below[r] = cull.nearBelow[r] = cull.within[r] = inf;
+    }
+    const float* const los[2] = {lo[0], lo[1]};
+    const float* const his[2] = {hi[0], hi[1]};
+    const float* const nlos[2] = {nlo[0], nlo[1]};
+    const float* const nhis[2] = {nhi[0], nhi[1]};
+    alignas(32) double entryD[2][W], entryF[2][W];
+    double* const ed[2] = {entryD[0], entryD[1]};
+    double* const ef[2] = {entryF[0], entryF[1]};
+    unsigned maskD[2], maskF[2];
+    // First the entries, then every limit set one step above the values of one child, chosen per ray.
+    detail::packetChildrenAvx2(los, his, nlos, nhis, &o[0][0], &inv[0][0], cull, active, ed, maskD);
+    for (int r = 0; r < W; ++r) {
+      const int c = r % 2;
+      TriangleBvh::Node node{};
+      for (int k = 0; k < 3; ++k) {
+        node.normalLo[k] = nlo[c][k];
+        node.normalHi[k] = nhi[c][k];
+      }
+      const Vec3 m(cull.axis[0][r], cull.axis[1][r], cull.axis[2][r]);
+      const double lower = TriangleBvh::minDot(node, m) - PacketCull::kSlack;
+      cull.cap[r] = std::nextafter(lower, inf);
+      const int rule = round % 3;  // kept through below, or through nearBelow and within
+      cull.below[r] = rule == 0 ? std::nextafter(lower, inf) : lower;
+      cull.nearBelow[r] = std::nextafter(lower, inf);
+      cull.within[r] = ((maskD[c] >> r) & 1u) ? entryD[c][r] : inf;
+    }
+    detail::packetChildrenAvx2(los, his, nlos, nhis, &o[0][0], &inv[0][0], cull, active, ed, maskD);
+    detail::PacketFloat f;
+    double sceneBound = 0.0;
+    for (int c = 0; c < 2; ++c)
+      for (int k = 0; k < 3; ++k) sceneBound = std::max({sceneBound, std::fabs(double(lo[c][k])), std::fabs(double(hi[c][k]))});
+    ASSERT_TRUE(f.set(&o[0][0], &d[0][0], &inv[0][0], W, sceneBound, cull)) << "round " << round;
+    detail::packetChildrenAvx2f(los, his, nlos, nhis, f, active, ef, maskF);
+    for (int c = 0; c < 2; ++c) {
+      ASSERT_EQ(maskD[c] & ~maskF[c], 0u) << "round " << round << " child " << c << ": a node kept in double is lost";
+      ASSERT_EQ(maskF[c] & ~active, 0u);
+      for (int r = 0; r < W; ++r)
+        if ((maskD[c] >> r) & 1u) {
+          ++kept;
+          ASSERT_LE(entryF[c][r], entryD[c][r]) << "round " << round << " child " << c << " ray " << r;
+        }
+      tested += __builtin_popcount(active);
+    }
+  }
+  EXPECT_GT(kept, tested / 50) << "the double test must keep rays, or the test proves nothing";
 }
 
 // The AVX2 triangle test against rayTriangle, bit for bit, on the cases where a different order of

@@ -56,8 +56,8 @@ void usePacketAvx2(bool on);
  * either n . m < below[r], or n . m < nearBelow[r] with the ray entering the subtree's box no farther
  * than within[r] (m = axis[.][r]; "may" by the subtree's bounds of its normals, less kSlack against
  * rounding). cap = below = +inf visits everything the ray meets; cap = +inf, below = -inf and
- * nearBelow = +inf make within a plain distance limit. The walk reads the arrays afresh after every
- * hit it reports, so the hit callback may change them.
+ * nearBelow = +inf make within a plain distance limit. The walk reads ray r's entries afresh after
+ * every hit it reports for ray r, so the hit callback may change them (and only them).
  */
 struct PacketCull {
   static constexpr int kRays = 16;
@@ -83,6 +83,39 @@ namespace detail {
 void packetChildrenAvx2(const float* const lo[2], const float* const hi[2], const float* const nlo[2],
                         const float* const nhi[2], const double* o, const double* inv, const PacketCull& cull,
                         unsigned active, double* const entry[2], unsigned mask[2]);
+
+/**
+ * \brief A packet in float for packetChildrenAvx2f: origins, inverse directions and PacketCull's arrays,
+ * rounded so that its test keeps every node the double test keeps (see forEachPacketHit).
+ */
+struct PacketFloat {
+  alignas(32) float o[3][PacketCull::kRays];
+  alignas(32) float inv[3][PacketCull::kRays];
+  alignas(32) float axis[3][PacketCull::kRays];
+  alignas(32) float slack[PacketCull::kRays];  ///< bounds the float rounding of the normals' lower bound
+  alignas(32) float cap[PacketCull::kRays];    ///< cap, below, nearBelow, within rounded up
+  alignas(32) float below[PacketCull::kRays];
+  alignas(32) float nearBelow[PacketCull::kRays];
+  alignas(32) float within[PacketCull::kRays];
+  float widen;  ///< every box is widened by this much on each side
+  /** \brief Copies ray r's cull entries, rounded (thresholds up, slack from the axis). */
+  void setCull(const PacketCull& cull, int r);
+  /**
+   * \brief Fills the packet from count rays, or returns false when a ray is outside what the float test
+   * covers (coordinates or scene beyond 2^30, a direction longer than 2^30 or whose largest component is
+   * under 1/4): the caller then uses the double test. sceneBound: the largest coordinate of the scene.
+   */
+  bool set(const double* o, const double* dirs, const double* inv, int count, double sceneBound, const PacketCull& cull);
+};
+
+/**
+ * \brief packetChildrenAvx2's test in float, eight rays per register: a node kept by the double test is
+ * kept here (boxes widened, thresholds rounded up, see PacketFloat), entry[c] gets lower bounds of the
+ * entry distances. The caller checks packetAvx2().
+ */
+void packetChildrenAvx2f(const float* const lo[2], const float* const hi[2], const float* const nlo[2],
+                         const float* const nhi[2], const PacketFloat& f, unsigned active, double* const entry[2],
+                         unsigned mask[2]);
 
 /**
  * \brief rayTriangle of one triangle (vertices a, b, c) against the active rays of a packet with AVX2, four
@@ -148,7 +181,8 @@ class TriangleBvh {
    * each ray into: one walk down the hierarchy for all of them, each node's two children tested against
    * every ray still in it, box and cull together. Meant for rays that start close together and point
    * alike (the placement's neighbouring rays share most of their nodes). Calls hit(r, triangle, t)
-   * with r the ray's index; hit may change cull, and nodes pushed before the change are tested again.
+   * with r the ray's index; hit may change ray r's entries of cull, and nodes pushed before the change
+   * are tested again.
    * Each ray gets every hit forEachRayHit gives it alone with keep = cull.keeps, in an order that may
    * differ. Allocates nothing.
    */
@@ -185,6 +219,7 @@ class TriangleBvh {
   // Each leaf entry's vertex indices, in leaf order: a leaf's triangles are read from one run of memory
   // instead of through the mesh's triangle array at scattered places (the walks' most frequent miss).
   std::vector<Triangle, detail::DefaultInitAllocator<Triangle>> corners_;
+  double sceneBound_ = 0.0;  // the largest coordinate of the root's box (for detail::PacketFloat)
 };
 
 template <class Hit, class Keep>
@@ -316,8 +351,11 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
     }
     return mask;
   };
-  // Where the CPU runs AVX2 both children are tested by one out-of-line call, four rays per register.
+  // Where the CPU runs AVX2 both children are tested by one out-of-line call, four rays per register,
+  // or eight in float when the packet's values allow a float test that keeps every node this one keeps.
   const bool avx2 = W == 16 && detail::packetAvx2();
+  detail::PacketFloat packetFloat;
+  const bool inFloat = avx2 && packetFloat.set(&o[0][0], &dv[0][0], &inv[0][0], count, sceneBound_, cull);
   struct Item {
     std::uint32_t node;
     unsigned mask;     // the rays that met the node's box and passed the cull when it was pushed
@@ -346,8 +384,10 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
           alignas(32) double t[W];
           const unsigned got = detail::packetTriangleAvx2(a.data(), b.data(), c.data(), &o[0][0], &dv[0][0], mask, t);
           for (unsigned m = got; m; m &= m - 1) {
+            const int r = __builtin_ctz(m);
             ++hits;
-            hit(__builtin_ctz(m), tri, t[__builtin_ctz(m)]);
+            hit(r, tri, t[r]);
+            if (inFloat) packetFloat.setCull(cull, r);
           }
           continue;
         }
@@ -374,7 +414,10 @@ void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int co
       const float* const nhi[2] = {ln.normalHi, rn.normalHi};
       double* const entry[2] = {l.t, r.t};
       unsigned masks[2];
-      detail::packetChildrenAvx2(lo, hi, nlo, nhi, &o[0][0], &inv[0][0], cull, mask, entry, masks);
+      if (inFloat)
+        detail::packetChildrenAvx2f(lo, hi, nlo, nhi, packetFloat, mask, entry, masks);
+      else
+        detail::packetChildrenAvx2(lo, hi, nlo, nhi, &o[0][0], &inv[0][0], cull, mask, entry, masks);
       l.mask = masks[0];
       r.mask = masks[1];
     } else {
