@@ -515,6 +515,28 @@ bool packetAvx2() {
   return has && !avx2Off.load(std::memory_order_relaxed);
 }
 
+namespace {
+// The lanes that meet the box (entry t0 <= exit t1) and pass PacketCull::keeps (lower: the normals' lower
+// bound less the slack), four doubles or eight floats at a time: the rule once for both precisions.
+#define CLOD_AVX2 __attribute__((target("avx2"))) inline
+CLOD_AVX2 __m256d lessThan(__m256d a, __m256d b) { return _mm256_cmp_pd(a, b, _CMP_LT_OQ); }
+CLOD_AVX2 __m256 lessThan(__m256 a, __m256 b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
+CLOD_AVX2 __m256d lessEqual(__m256d a, __m256d b) { return _mm256_cmp_pd(a, b, _CMP_LE_OQ); }
+CLOD_AVX2 __m256 lessEqual(__m256 a, __m256 b) { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
+CLOD_AVX2 __m256d both(__m256d a, __m256d b) { return _mm256_and_pd(a, b); }
+CLOD_AVX2 __m256 both(__m256 a, __m256 b) { return _mm256_and_ps(a, b); }
+CLOD_AVX2 __m256d either(__m256d a, __m256d b) { return _mm256_or_pd(a, b); }
+CLOD_AVX2 __m256 either(__m256 a, __m256 b) { return _mm256_or_ps(a, b); }
+CLOD_AVX2 unsigned bits(__m256d a) { return static_cast<unsigned>(_mm256_movemask_pd(a)); }
+CLOD_AVX2 unsigned bits(__m256 a) { return static_cast<unsigned>(_mm256_movemask_ps(a)); }
+template <class V>
+CLOD_AVX2 unsigned keptBits(V lower, V t0, V t1, V cap, V below, V nearBelow, V within) {
+  const V near = both(lessThan(lower, nearBelow), lessEqual(t0, within));
+  return bits(both(lessEqual(t0, t1), both(lessThan(lower, cap), either(lessThan(lower, below), near))));
+}
+#undef CLOD_AVX2
+}  // namespace
+
 __attribute__((target("avx2"))) void packetChildrenAvx2(const float* const lo[2], const float* const hi[2],
                                                        const float* const nlo[2], const float* const nhi[2],
                                                        const double* o, const double* inv, const PacketCull& cull,
@@ -542,12 +564,9 @@ __attribute__((target("avx2"))) void packetChildrenAvx2(const float* const lo[2]
       }
       lower = _mm256_sub_pd(lower, _mm256_set1_pd(PacketCull::kSlack));
       _mm256_storeu_pd(entry[c] + h, t0);
-      const __m256d near = _mm256_and_pd(_mm256_cmp_pd(lower, _mm256_load_pd(cull.nearBelow + h), _CMP_LT_OQ),
-                                         _mm256_cmp_pd(t0, _mm256_load_pd(cull.within + h), _CMP_LE_OQ));
-      const __m256d keeps =
-          _mm256_and_pd(_mm256_cmp_pd(lower, _mm256_load_pd(cull.cap + h), _CMP_LT_OQ),
-                        _mm256_or_pd(_mm256_cmp_pd(lower, _mm256_load_pd(cull.below + h), _CMP_LT_OQ), near));
-      m |= static_cast<unsigned>(_mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(t0, t1, _CMP_LE_OQ), keeps))) << h;
+      m |= keptBits(lower, t0, t1, _mm256_load_pd(cull.cap + h), _mm256_load_pd(cull.below + h),
+                    _mm256_load_pd(cull.nearBelow + h), _mm256_load_pd(cull.within + h))
+           << h;
     }
     mask[c] = m & active;
   }
@@ -583,12 +602,9 @@ __attribute__((target("avx2"))) void packetChildrenAvx2f(const float* const lo[2
       lower = _mm256_sub_ps(lower, _mm256_load_ps(f.slack + h));
       _mm256_storeu_pd(entry[c] + h, _mm256_cvtps_pd(_mm256_castps256_ps128(t0)));
       _mm256_storeu_pd(entry[c] + h + 4, _mm256_cvtps_pd(_mm256_extractf128_ps(t0, 1)));
-      const __m256 near = _mm256_and_ps(_mm256_cmp_ps(lower, _mm256_load_ps(f.nearBelow + h), _CMP_LT_OQ),
-                                        _mm256_cmp_ps(t0, _mm256_load_ps(f.within + h), _CMP_LE_OQ));
-      const __m256 keeps =
-          _mm256_and_ps(_mm256_cmp_ps(lower, _mm256_load_ps(f.cap + h), _CMP_LT_OQ),
-                        _mm256_or_ps(_mm256_cmp_ps(lower, _mm256_load_ps(f.below + h), _CMP_LT_OQ), near));
-      m |= static_cast<unsigned>(_mm256_movemask_ps(_mm256_and_ps(_mm256_cmp_ps(t0, t1, _CMP_LE_OQ), keeps))) << h;
+      m |= keptBits(lower, t0, t1, _mm256_load_ps(f.cap + h), _mm256_load_ps(f.below + h),
+                    _mm256_load_ps(f.nearBelow + h), _mm256_load_ps(f.within + h))
+           << h;
     }
     mask[c] = m & active;
   }
