@@ -403,7 +403,7 @@ TEST(TriangleBvh, PacketTriangleTestIsRayTriangleBitForBit) {
     ASSERT_EQ(got & ~active, 0u) << "only active rays hit";
     for (int r = 0; r < W; ++r) {
       if (!((active >> r) & 1u)) continue;
-      double expect;
+      double expect = 0.0;
       const bool hit = rayTriangle(Vec3(o[0][r], o[1][r], o[2][r]), Vec3(d[0][r], d[1][r], d[2][r]), v[0], v[1], v[2], expect);
       ++compared;
       ASSERT_EQ(hit, bool((got >> r) & 1u)) << "round " << round << " ray " << r;
