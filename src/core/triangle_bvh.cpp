@@ -438,18 +438,6 @@ namespace detail {
 namespace {
 std::atomic<bool> avx2Off{false};
 
-// The smallest float >= x (x not NaN).
-inline float roundUp(double x) {
-  float f = static_cast<float>(x);
-  if (static_cast<double>(f) < x) {  // f is finite: one step up
-    if (f == 0.0f) return std::numeric_limits<float>::denorm_min();
-    std::uint32_t bits;
-    std::memcpy(&bits, &f, 4);
-    bits = f > 0.0f ? bits + 1 : bits - 1;
-    std::memcpy(&f, &bits, 4);
-  }
-  return f;
-}
 }  // namespace
 
 // Why the float test keeps every node the double one keeps. With B = sceneBound + the largest origin
@@ -472,11 +460,11 @@ void PacketFloat::setCull(const PacketCull& cull, int r) {
     axis[k][r] = static_cast<float>(cull.axis[k][r]);
     sum += std::fabs(cull.axis[k][r]);
   }
-  slack[r] = roundUp(sum * 0x1p-21 + 2.0 * PacketCull::kSlack);
-  cap[r] = roundUp(cull.cap[r]);
-  below[r] = roundUp(cull.below[r]);
-  nearBelow[r] = roundUp(cull.nearBelow[r]);
-  within[r] = roundUp(cull.within[r]);
+  slack[r] = up(sum * 0x1p-21 + 2.0 * PacketCull::kSlack);
+  cap[r] = up(cull.cap[r]);
+  below[r] = up(cull.below[r]);
+  nearBelow[r] = up(cull.nearBelow[r]);
+  within[r] = up(cull.within[r]);
 }
 
 bool PacketFloat::set(const double* origins, const double* dirs, const double* inverse, int count,
@@ -495,13 +483,13 @@ bool PacketFloat::set(const double* origins, const double* dirs, const double* i
   }
   if (!(bound >= 1e-18 && bound <= kLimit)) return false;  // the widening stays a normal float
   const double w = std::ldexp(bound, -18);
-  widen = roundUp(w);
+  widen = up(w);
   for (int k = 0; k < 3; ++k)
     for (int r = 0; r < W; ++r) {
       o[k][r] = static_cast<float>(origins[k * W + r]);
       const double d = dirs[k * W + r];
       inv[k][r] = std::fabs(d) >= 1.0 / kLimit ? static_cast<float>(inverse[k * W + r])
-                                                : std::copysign(std::ldexp(1.0f, 120), float(inverse[k * W + r]));
+                                                : std::copysign(0x1p120f, float(inverse[k * W + r]));
     }
   for (int r = 0; r < W; ++r) setCull(cull, r < count ? r : 0);
   return true;
