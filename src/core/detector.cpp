@@ -1,6 +1,7 @@
 #include "clod_haptics/core/detector.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -53,11 +54,17 @@ struct ClodDetector::Best {
 namespace {
 constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
 constexpr std::size_t kRecord = 13;  // doubles per triangle record: ball (4), corners (9)
+
+// Detector ids: 64 bits counted from 1 do not wrap in the life of a process.
+std::uint64_t nextDetectorId() {
+  static std::atomic<std::uint64_t> counter{0};
+  return counter.fetch_add(1, std::memory_order_relaxed) + 1;
 }
+}  // namespace
 
 ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
                            FastLevel fastLevel, double gridRadius)
-    : mesh_(std::move(mesh)), spheres_(std::move(spheres)), fastLevel_(fastLevel) {
+    : mesh_(std::move(mesh)), spheres_(std::move(spheres)), fastLevel_(fastLevel), id_(nextDetectorId()) {
   const TriangleMesh& m = *mesh_;
   const ClodSphereSet& s = *spheres_;
   const Eigen::AlignedBox3d bounds = m.bounds();
@@ -218,15 +225,15 @@ inline void ClodDetector::testGridTriangle(std::uint32_t tri, const Vec3& p, Det
 void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const {
   const std::uint64_t key = grid_.keyOf(p);
   const CellGrid::CellRef* ref;
-  if (cache != nullptr && cache->owner == this && cache->key == key) {
+  if (cache != nullptr && cache->owner == id_ && cache->key == key) {
     ref = static_cast<const CellGrid::CellRef*>(cache->cell);
     ++cache->hits;
   } else {
     ref = grid_.find(key);
   }
   if (cache != nullptr) {
-    if (cache->owner != this) cache->lastTriangle = -1;
-    cache->owner = this;
+    if (cache->owner != id_) cache->lastTriangle = -1;
+    cache->owner = id_;
     cache->key = key;
     cache->cell = ref;
   }

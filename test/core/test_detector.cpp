@@ -467,6 +467,81 @@ TEST(ClodDetector, AllFastLevelsAndTheCacheGiveTheSameAnswers) {
   }
 }
 
+// A QueryCache outlives the detector that filled it when a stream swaps levels (the ROS detector keeps one
+// cache across reconfigures), and the next detector is often allocated at the freed one's address. Here the
+// two detectors alternate between the torus and the same torus with its triangles listed in reverse order:
+// the same cells, other triangle numbers. A cache that took the new detector for the old one would read the
+// freed grid's cell (the old numbering, or garbage) and miss contacts. Many build/free cycles through
+// make_shared, one cache, every answer against brute force.
+TEST(ClodDetector, ACacheNeverReadsAFreedDetectorReusedAtItsAddress) {
+  const auto torus = clod_test::loadNormalized(clod_test::testData("../../data/meshes/torus.obj"));
+  // The second mesh: the torus's triangles in reverse order, and 300 tiny ones in the middle of its hole (inside
+  // its bounds, so the grid's origin and cell size stay, but its arrays get another size and layout).
+  std::vector<Triangle> reversed(torus->triangles.rbegin(), torus->triangles.rend());
+  std::vector<Vec3> vertices = torus->vertices;
+  const Vec3 hole = torus->bounds().center();
+  for (int i = 0; i < 300; ++i) {
+    const Vec3 a = hole + Vec3(1e-4 * (i % 20), 1e-4 * (i / 20), 0.0);
+    const auto v = static_cast<std::uint32_t>(vertices.size());
+    vertices.insert(vertices.end(), {a, a + Vec3(5e-5, 0.0, 0.0), a + Vec3(0.0, 5e-5, 2e-5)});
+    reversed.push_back(Triangle{v, v + 1, v + 2});
+  }
+  const auto renumbered = std::make_shared<const TriangleMesh>(makeMesh(vertices, reversed, "torus reversed"));
+  const std::shared_ptr<const TriangleMesh> meshes[2] = {torus, renumbered};
+  // Levels of both meshes at several distances: other sphere lists, other grid contents.
+  std::vector<std::pair<int, std::shared_ptr<const ClodSphereSet>>> levels;
+  for (double d : {0.0, 0.03, 0.06, 0.01})
+    for (int m = 0; m < 2; ++m) levels.emplace_back(m, std::make_shared<const ClodSphereSet>(ClodBuilder(meshes[m]).build(d)));
+  // Within r of the surface: every answer is the bounded query's (no deep-penetration follow-up).
+  auto probes = nearSurfaceProbes(*torus, 300, 0.0045, 11);
+  sortMorton(probes);
+  const double r = 0.005;
+  std::vector<ContactResult> reference[2];
+  for (int m = 0; m < 2; ++m)
+    for (const Vec3& p : probes) reference[m].push_back(bruteForceQuery(*meshes[m], p, r));
+
+  QueryCache cache;
+  std::size_t reused = 0, checked = 0;
+  const void* previous = nullptr;
+  for (int cycle = 0; cycle < 60; ++cycle) {
+    const int which = levels[cycle % levels.size()].first;
+    auto detector =
+        std::make_shared<const ClodDetector>(meshes[which], levels[cycle % levels.size()].second, FastLevel::Grid, 0.02);
+    if (detector.get() == previous) ++reused;
+    previous = detector.get();
+    EXPECT_NE(detector->id(), 0u);
+    // The first pose is the previous detector's last one: the cell the cache remembers.
+    const std::size_t start = (static_cast<std::size_t>(cycle) * 5) % probes.size();
+    for (std::size_t k = 0; k < 6; ++k) {
+      const std::size_t i = (start + k) % probes.size();
+      ContactResult out;
+      detector->query(probes[i], r, DetectionMode::Exact, out, &cache);
+      const ContactResult& ref = reference[which][i];
+      ASSERT_EQ(out.contact, ref.contact) << "cycle " << cycle << " pose " << k << " probe " << i;
+      if (out.contact) {
+        ASSERT_NEAR(out.distance, ref.distance, 1e-12) << "cycle " << cycle << " probe " << i;
+        ASSERT_EQ(out.triangle, ref.triangle) << "cycle " << cycle << " probe " << i;
+      }
+      ++checked;
+    }
+    detector.reset();  // the level swap frees it; the cache keeps its entry
+  }
+  EXPECT_EQ(checked, 60u * 6u);
+  // The test is only a test if the allocator did reuse addresses (glibc does for same-size blocks).
+  EXPECT_GT(reused, 0u) << "no detector was allocated at a freed one's address: the reuse was not exercised";
+}
+
+TEST(ClodDetector, IdsAreUniqueAndNeverZero) {
+  const auto mesh = clod_test::loadNormalized(clod_test::testData("../../data/meshes/torus.obj"));
+  const auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
+  std::uint64_t last = 0;
+  for (int i = 0; i < 5; ++i) {
+    const ClodDetector d(mesh, set, FastLevel::Hierarchy);
+    EXPECT_GT(d.id(), last);
+    last = d.id();
+  }
+}
+
 TEST(FastLevel, Parses) {
   FastLevel level;
   EXPECT_TRUE(parseFastLevel("flat", level));

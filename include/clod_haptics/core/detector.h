@@ -25,7 +25,9 @@ enum class FastLevel : std::uint8_t {
  * per stylus stream, not shared between threads); the answer is the same with or without it.
  */
 struct QueryCache {
-  const void* owner = nullptr;        ///< the detector that filled it; another detector ignores it
+  /// The detector that filled it, by ClodDetector::id() (never by address: a freed detector's address is
+  /// reused by the next allocation, its id never is). 0: empty. Another detector ignores the entry.
+  std::uint64_t owner = 0;
   std::uint64_t key = ~0ull;          ///< last grid cell
   const void* cell = nullptr;         ///< that cell's index entry in the grid (null: empty cell)
   std::int32_t lastTriangle = -1;     ///< last contact triangle
@@ -78,6 +80,11 @@ class ClodDetector {
   const std::shared_ptr<const ClodSphereSet>& spheres() const { return spheres_; }
   /** \brief The fast-level strategy in use. */
   FastLevel fastLevel() const { return fastLevel_; }
+  /**
+   * \brief A number unique to this detector within the process (a counter stamped at construction,
+   * never reused, never 0): the identity a QueryCache keeps across level swaps.
+   */
+  std::uint64_t id() const { return id_; }
 
  private:
   struct Best;
@@ -92,6 +99,7 @@ class ClodDetector {
   std::shared_ptr<const TriangleMesh> mesh_;
   std::shared_ptr<const ClodSphereSet> spheres_;
   FastLevel fastLevel_;
+  std::uint64_t id_;
   double pad_ = 0.0;  // conservative padding relative to the model's coordinates
 
   // Flat copies for the cache: triangle corners (9 doubles each) and padded spheres (x, y, z, radius).
