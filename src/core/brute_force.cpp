@@ -7,9 +7,11 @@
 
 namespace clod_haptics {
 
-ContactResult bruteForceQuery(const TriangleMesh& mesh, const Vec3& p, double r) {
-  ContactResult out;
-  if (!validPointer(p, r)) return out;
+namespace {
+
+// The nearest triangle over all (ties: the lowest index), as point, distance and triangle in out.
+// Returns the squared distance (infinity for a mesh without triangles).
+double nearest(const TriangleMesh& mesh, const Vec3& p, ContactResult& out) {
   double best = std::numeric_limits<double>::infinity();
   std::size_t bestTri = 0;
   Vec3 bestPoint = Vec3::Zero();
@@ -23,13 +25,37 @@ ContactResult bruteForceQuery(const TriangleMesh& mesh, const Vec3& p, double r)
     }
   }
   out.trianglesTested = static_cast<std::uint32_t>(mesh.size());
-  if (!(best <= r * r)) return out;
-  out.contact = true;
   out.point = bestPoint;
   out.distance = std::sqrt(best);
-  out.depth = r - out.distance;
   out.triangle = static_cast<std::int32_t>(bestTri);
-  out.normal = contactNormal(p, bestPoint, mesh.normals[bestTri]);
+  return best;
+}
+
+}  // namespace
+
+ContactResult bruteForceQuery(const TriangleMesh& mesh, const Vec3& p, double r) {
+  ContactResult out;
+  if (!validPointer(p, r)) return out;
+  ContactResult found;
+  const double best = nearest(mesh, p, found);
+  out.trianglesTested = found.trianglesTested;
+  if (!(best <= r * r)) return out;
+  out = found;
+  out.contact = true;
+  finishContact(mesh, p, r, out);
+  return out;
+}
+
+ContactResult bruteForceSignedQuery(const TriangleMesh& mesh, const Vec3& p, double r) {
+  ContactResult out;
+  if (!validPointer(p, r)) return out;
+  ContactResult found;
+  const double best = nearest(mesh, p, found);
+  out.trianglesTested = found.trianglesTested;
+  if (!std::isfinite(best)) return out;
+  found.contact = true;
+  finishContact(mesh, p, r, found);
+  if (best <= r * r || (found.inside && mesh.bounds().contains(p))) out = found;
   return out;
 }
 

@@ -340,34 +340,79 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
     out.distance = std::max(0.0, bestGap);
     out.depth = r - out.distance;
     out.sphere = static_cast<std::int32_t>(bestSphere);
+    if (cache != nullptr) cache->lastInside = false;  // spheres never say inside
     return;
   }
 
-  if (!grid_.empty() && r <= grid_.radius()) {
-    preciseGrid(p, mode, best, cache);
-  } else {
-    const bool tree = fastLevel_ != FastLevel::Flat && !triangleRoot_.empty();
-    forEachHitSphere(p.x(), p.y(), p.z(), best.reach, tree, [&](std::uint32_t i) {
-      ++best.hits;
-      if (tree)
-        preciseTree(i, p, mode, best);
-      else
-        preciseFlat(i, p, mode, best);
-    });
+  // The nearest triangle within radius (the tie rule of bruteForceQuery), through the configured levels:
+  // the grid up to its radius, the hierarchy (or the flat list) beyond.
+  auto search = [&](double radius) {
+    best.d2 = radius * radius;
+    best.reach = radius;
+    best.found = false;
+    if (!grid_.empty() && radius <= grid_.radius()) {
+      preciseGrid(p, mode, best, cache);
+    } else {
+      const bool tree = fastLevel_ != FastLevel::Flat && !triangleRoot_.empty();
+      forEachHitSphere(p.x(), p.y(), p.z(), best.reach, tree, [&](std::uint32_t i) {
+        ++best.hits;
+        if (tree)
+          preciseTree(i, p, mode, best);
+        else
+          preciseFlat(i, p, mode, best);
+      });
+    }
+  };
+  search(r);
+  // Deep penetration: the stream was inside and no triangle is within r. The nearest triangle is found
+  // with a growing radius; only a centre inside the model's box can be inside a closed surface, and from
+  // there every triangle is within the box's diagonal, where the search ends.
+  const bool deep = !best.found && cache != nullptr && cache->lastInside;
+  if (deep) {
+    Eigen::AlignedBox3d box;
+    if (!tightNodes_.empty()) {  // the root bounds every triangle (float, rounded outward)
+      const BoxNode& root = tightNodes_[0];
+      box = Eigen::AlignedBox3d(Vec3(root.lo[0], root.lo[1], root.lo[2]), Vec3(root.hi[0], root.hi[1], root.hi[2]));
+    } else {
+      box = mesh_->bounds();  // the flat level keeps no tree: O(triangles), only while a push is followed
+    }
+    if (box.contains(p)) {
+      const double diagonal = box.diagonal().norm();
+      // At most about 20 rounds from a tiny radius; 2r for a usual one.
+      for (double radius = std::max(2.0 * r, diagonal * 0x1p-20);; radius *= 2.0) {
+        const double reach = std::min(radius, diagonal);
+        search(reach);
+        if (best.found || !(reach < diagonal)) break;
+      }
+    }
   }
   out.spheresHit = best.hits;
   out.trianglesTested = best.tested;
-  if (!best.found) return;
-  out.contact = true;
+  if (!best.found) {
+    if (cache != nullptr) cache->lastInside = false;
+    return;
+  }
   out.point = best.point;
   out.distance = std::sqrt(best.d2);
-  out.depth = r - out.distance;
   out.triangle = static_cast<std::int32_t>(best.triangle);
+  finishContact(*mesh_, p, r, out);  // inside, signed depth, outward normal: the rule brute force shares
+  if (deep && !out.inside) {
+    // The nearest surface is beyond r and the centre is outside it: no contact.
+    const std::uint32_t hits = out.spheresHit, tested = out.trianglesTested;
+    out = ContactResult{};
+    out.spheresHit = hits;
+    out.trianglesTested = tested;
+    cache->lastInside = false;
+    return;
+  }
+  out.contact = true;
   // The grid defers the sphere to here: the first sphere listing the triangle.
   const std::uint32_t sphere = best.sphere != kNone ? best.sphere : sphereOfTriangle_[best.triangle];
   out.sphere = sphere != kNone ? static_cast<std::int32_t>(sphere) : -1;
-  out.normal = contactNormal(p, best.point, mesh_->normals[best.triangle]);
-  if (cache != nullptr) cache->lastTriangle = out.triangle;
+  if (cache != nullptr) {
+    cache->lastTriangle = out.triangle;
+    cache->lastInside = out.inside;
+  }
 }
 
 std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcept {

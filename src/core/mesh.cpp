@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "clod_haptics/core/errors.h"
 
@@ -25,6 +26,63 @@ Vec3 faceNormal(const Vec3& a, const Vec3& b, const Vec3& c) {
   return n / len;
 }
 
+void computeAdjacency(TriangleMesh& mesh) {
+  const std::size_t nt = mesh.triangles.size(), nv = mesh.vertices.size();
+  // Edges as (lower id, higher id, triangle, direction); sorted, the triangles of one edge are adjacent.
+  struct HalfEdge {
+    std::uint32_t lo, hi, triangle;
+    bool forward;  // the triangle runs lo -> hi
+  };
+  std::vector<HalfEdge> edges;
+  edges.reserve(3 * nt);
+  for (std::size_t t = 0; t < nt; ++t)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = mesh.triangles[t][k], b = mesh.triangles[t][(k + 1) % 3];
+      if (a == b) continue;  // a repeated index is no edge
+      edges.push_back({std::min(a, b), std::max(a, b), static_cast<std::uint32_t>(t), a < b});
+    }
+  std::sort(edges.begin(), edges.end(), [](const HalfEdge& x, const HalfEdge& y) {
+    return x.lo != y.lo ? x.lo < y.lo : x.hi != y.hi ? x.hi < y.hi : x.triangle < y.triangle;
+  });
+  mesh.neighbours.assign(nt, {-1, -1, -1});
+  auto link = [&](std::uint32_t t, std::uint32_t other) {
+    for (std::int32_t& slot : mesh.neighbours[t])
+      if (slot < 0) {
+        slot = static_cast<std::int32_t>(other);
+        return;
+      }
+  };
+  for (std::size_t i = 0; i < edges.size();) {
+    std::size_t j = i + 1;
+    while (j < edges.size() && edges[j].lo == edges[i].lo && edges[j].hi == edges[i].hi) ++j;
+    // Manifold: exactly two distinct triangles, traversing the edge in opposite directions.
+    if (j - i == 2 && edges[i].triangle != edges[i + 1].triangle && edges[i].forward != edges[i + 1].forward) {
+      link(edges[i].triangle, edges[i + 1].triangle);
+      link(edges[i + 1].triangle, edges[i].triangle);
+    }
+    i = j;
+  }
+
+  // Corners per vertex (counting sort: triangles ascending within each vertex), with their angles.
+  mesh.cornerOffsets.assign(nv + 1, 0);
+  for (const Triangle& t : mesh.triangles)
+    for (std::uint32_t v : t) ++mesh.cornerOffsets[v + 1];
+  for (std::size_t v = 0; v < nv; ++v) mesh.cornerOffsets[v + 1] += mesh.cornerOffsets[v];
+  mesh.cornerTriangles.assign(3 * nt, 0);
+  mesh.cornerAngles.assign(3 * nt, 0.0f);
+  std::vector<std::uint32_t> fill(mesh.cornerOffsets.begin(), mesh.cornerOffsets.end() - 1);
+  for (std::size_t t = 0; t < nt; ++t)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t v = mesh.triangles[t][k];
+      const Vec3 e1 = mesh.vertex(t, (k + 1) % 3) - mesh.vertices[v], e2 = mesh.vertex(t, (k + 2) % 3) - mesh.vertices[v];
+      // atan2 of |cross| and dot: accurate for every angle, 0 for a zero-length edge.
+      const double angle = std::atan2(e1.cross(e2).norm(), e1.dot(e2));
+      const std::uint32_t slot = fill[v]++;
+      mesh.cornerTriangles[slot] = static_cast<std::uint32_t>(t);
+      mesh.cornerAngles[slot] = std::isfinite(angle) ? static_cast<float>(angle) : 0.0f;
+    }
+}
+
 TriangleMesh makeMesh(std::vector<Vec3> vertices, std::vector<Triangle> triangles, std::string name) {
   if (triangles.empty()) throw InvalidParameter("mesh '" + name + "' has no triangles");
   for (std::size_t i = 0; i < vertices.size(); ++i)
@@ -42,6 +100,7 @@ TriangleMesh makeMesh(std::vector<Vec3> vertices, std::vector<Triangle> triangle
   mesh.normals.resize(mesh.triangles.size());
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
     mesh.normals[t] = faceNormal(mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2));
+  computeAdjacency(mesh);
   return mesh;
 }
 

@@ -156,6 +156,8 @@ TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey) {
   for (const Vec3& n : mesh.normals)
     if (!n.allFinite()) r.fail("a normal is not finite");
   if (!std::isfinite(mesh.scale) || !mesh.offset.allFinite()) r.fail("scale or offset not finite");
+  // The adjacency is not stored (the file layout is unchanged): it is rebuilt as makeMesh builds it.
+  computeAdjacency(mesh);
   return mesh;
 }
 

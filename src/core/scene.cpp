@@ -107,23 +107,37 @@ void SceneDetector::query(const Vec3& p, double r, DetectionMode mode, SceneCont
       margin[k] = dx * dx + dy * dy + dz * dz - reach * reach;  // a - b <= 0 exactly when a <= b
     }
     for (std::size_t k = 0; k < m; ++k) {
-      if (!(margin[k] <= 0.0)) continue;  // NaN (inactive) fails too
+      if (!(margin[k] <= 0.0)) {  // NaN (inactive) fails too
+        if (caches) caches[base + k].lastInside = false;  // no contact: a later deep search would be stale
+        continue;
+      }
       const std::size_t i = base + k;
       const Object& object = objects_[i];
       const Vec3 local = object.objectFromWorld * p;
       // The box is tighter than the sphere for long or flat objects; still no sphere touched.
-      if (object.localBox.exteriorDistance(local) > r) continue;
+      if (object.localBox.exteriorDistance(local) > r) {
+        if (caches) caches[i].lastInside = false;
+        continue;
+      }
       ++out.objectsQueried;
       ContactResult result;
       if (object.detector) {
         object.detector->query(local, r, mode, result, caches ? &caches[i] : nullptr);
+      } else if (caches && caches[i].lastInside && mode != DetectionMode::Spheres) {
+        // The stream was inside this object: follow the push beyond r, as a detector with a cache does.
+        result = bruteForceSignedQuery(*object.mesh, local, r);
+        caches[i].lastInside = result.contact && result.inside;
+        ++out.bruteForce;
       } else {
         result = bruteForceQuery(*object.mesh, local, r);
+        if (caches) caches[i].lastInside = result.contact && result.inside && mode != DetectionMode::Spheres;
         ++out.bruteForce;
       }
       if (!result.contact) continue;
       ++out.touched;
       out.contact = true;
+      // depth is the signed penetration (r + distance with the centre inside): the summed spring grows
+      // while the pointer pushes into any object, and maxDepth names the object pushed deepest.
       const Vec3 normal = object.worldFromObject.linear() * result.normal;
       out.penetration += result.depth * normal;
       if (out.contacts < capacity) {

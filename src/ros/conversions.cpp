@@ -121,11 +121,13 @@ void toMsg(const ContactResult& result, const Vec3& pointer, double radius, Cont
     msg.normal = toVector3(result.normal);
     msg.distance = result.distance;
     msg.depth = result.depth;
+    msg.inside = result.inside;
   } else {
     msg.point = geometry_msgs::Point();
     msg.normal = geometry_msgs::Vector3();
     msg.distance = 0.0;
     msg.depth = 0.0;
+    msg.inside = false;
   }
   msg.triangle = result.contact ? result.triangle : -1;
   msg.sphere = result.contact ? result.sphere : -1;
@@ -135,6 +137,8 @@ void toMsg(const ContactResult& result, const Vec3& pointer, double radius, Cont
   msg.pointer_radius = radius;
 }
 
+// depth is the signed penetration (r + distance with the centre inside), so the spring keeps growing
+// while the stylus pushes in; maxForce bounds it.
 Vec3 penaltyForce(const ContactResult& result, double stiffness, double maxForce) {
   if (!result.contact || !(result.depth > 0.0) || !(stiffness > 0.0)) return Vec3::Zero();
   Vec3 f = stiffness * result.depth * result.normal;

@@ -201,6 +201,77 @@ TEST(ClosestPointOnTriangle, ZeroAreaTrianglesGiveFiniteAnswersOnTheirSegments) 
   }
 }
 
+// closestPointAndRegion: the same point as the inline closestPointOnTriangle, bit for bit (the detector
+// keeps the hot loop's point and asks the region once), and a region that names where the point is.
+TEST(ClosestPointAndRegion, SamePointAndTheRegionNamesTheFeature) {
+  std::mt19937_64 rng(4242);
+  int faces = 0, edges = 0, vertices = 0;
+  for (int i = 0; i < 70000; ++i) {
+    const Case k = randomCase(rng, i);
+    TriangleFeature feature;
+    const Vec3 fast = closestPointOnTriangle(k.p, k.a, k.b, k.c, &feature);
+    TriangleRegion region;
+    const Vec3 q = closestPointAndRegion(k.p, k.a, k.b, k.c, region);
+    ASSERT_EQ(q, fast) << "case " << i;
+    const Vec3 corner[3] = {k.a, k.b, k.c};
+    if (region.feature == TriangleFeature::Vertex) {
+      ++vertices;
+      ASSERT_LT(region.index, 3);
+      // At that vertex (to rounding, when an edge parameter reached its end).
+      const double size = std::max({(k.a - k.b).norm(), (k.b - k.c).norm(), (k.c - k.a).norm(), 1.0});
+      ASSERT_LE((q - corner[region.index]).norm(), 1e-12 * size) << "case " << i;
+      ASSERT_NE(feature, TriangleFeature::Face) << "case " << i;
+    } else if (region.feature == TriangleFeature::Edge) {
+      ++edges;
+      ASSERT_LT(region.index, 3);
+      ASSERT_EQ(feature, TriangleFeature::Edge) << "case " << i;
+      const Vec3 a = corner[region.index], b = corner[(region.index + 1) % 3];
+      const double scale = std::max({(b - a).norm(), a.cwiseAbs().maxCoeff(), 1.0});
+      ASSERT_LE((q - closestPointOnSegment(q, a, b)).norm(), 1e-12 * scale) << "case " << i;
+    } else {
+      ++faces;
+      ASSERT_EQ(feature, TriangleFeature::Face) << "case " << i;
+      ASSERT_EQ(region.index, 0);
+    }
+  }
+  EXPECT_GT(faces, 500);
+  EXPECT_GT(edges, 1000);
+  EXPECT_GT(vertices, 1000);
+}
+
+TEST(ClosestPointAndRegion, CornersEdgesAndZeroArea) {
+  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0);
+  TriangleRegion r;
+  EXPECT_EQ(closestPointAndRegion(Vec3(-1, -1, 1), a, b, c, r), a);
+  EXPECT_EQ(r.feature, TriangleFeature::Vertex);
+  EXPECT_EQ(r.index, 0);
+  closestPointAndRegion(Vec3(2, -0.5, 0), a, b, c, r);
+  EXPECT_EQ(r.feature, TriangleFeature::Vertex);
+  EXPECT_EQ(r.index, 1);
+  closestPointAndRegion(Vec3(-0.5, 2, 0), a, b, c, r);
+  EXPECT_EQ(r.feature, TriangleFeature::Vertex);
+  EXPECT_EQ(r.index, 2);
+  closestPointAndRegion(Vec3(0.5, -1, 0.3), a, b, c, r);  // below edge ab
+  EXPECT_EQ(r.feature, TriangleFeature::Edge);
+  EXPECT_EQ(r.index, 0);
+  closestPointAndRegion(Vec3(1, 1, -0.3), a, b, c, r);  // beyond edge bc
+  EXPECT_EQ(r.feature, TriangleFeature::Edge);
+  EXPECT_EQ(r.index, 1);
+  closestPointAndRegion(Vec3(-1, 0.5, 0.2), a, b, c, r);  // beside edge ca
+  EXPECT_EQ(r.feature, TriangleFeature::Edge);
+  EXPECT_EQ(r.index, 2);
+  closestPointAndRegion(Vec3(0.2, 0.2, -3), a, b, c, r);
+  EXPECT_EQ(r.feature, TriangleFeature::Face);
+  // Zero area: its segments answer, an end of one a vertex.
+  const Vec3 d(2, 0, 0);
+  const Vec3 q = closestPointAndRegion(Vec3(0.5, 1, 0), a, b, d, r);
+  EXPECT_EQ(q, closestPointOnTriangle(Vec3(0.5, 1, 0), a, b, d));
+  EXPECT_EQ(r.feature, TriangleFeature::Edge);
+  closestPointAndRegion(Vec3(3, 1, 0), a, b, d, r);
+  EXPECT_EQ(r.feature, TriangleFeature::Vertex);
+  EXPECT_EQ(r.index, 2);
+}
+
 TEST(ClosestPointOnSegment, ClampsAndHandlesZeroLength) {
   const Vec3 a(0, 0, 0), b(2, 0, 0);
   EXPECT_EQ(closestPointOnSegment(Vec3(-1, 1, 0), a, b), a);

@@ -91,14 +91,21 @@ class SceneTest : public ::testing::Test {
     return probes;
   }
 
-  /** Checks one scene answer against brute force on every object. */
+  /**
+   * Checks one scene answer against brute force on every object. With per-object caches the stream follows
+   * a push beyond r into an object it was inside at the previous answer: followed (one flag per object, the
+   * previous answers' inside) picks the signed reference for those, and is updated from this answer.
+   */
   void expectMatchesReference(const SceneDetector& scene, const Vec3& p, double r, const SceneContact* contacts,
-                              const SceneQueryResult& out) {
+                              const SceneQueryResult& out, std::vector<char>* followed = nullptr) {
     std::uint32_t k = 0;
     Vec3 penetration = Vec3::Zero();
     for (std::uint32_t i = 0; i < scene.size(); ++i) {
-      const ContactResult ref = reference(*scene.mesh(i), scene.pose(i), p, r);
+      const bool deep = followed != nullptr && (*followed)[i];
+      const ContactResult ref = deep ? bruteForceSignedQuery(*scene.mesh(i), scene.pose(i).inverse() * p, r)
+                                     : reference(*scene.mesh(i), scene.pose(i), p, r);
       const bool listed = k < out.contacts && contacts[k].object == i;
+      if (followed != nullptr) (*followed)[i] = listed && contacts[k].local.inside;
       if (onTheEdge(ref, r)) {
         if (listed) ++k;
         continue;
@@ -108,7 +115,8 @@ class SceneTest : public ::testing::Test {
       if (!listed) continue;
       const SceneContact& c = contacts[k++];
       ASSERT_NEAR(c.local.distance, ref.distance, 1e-12);
-      ASSERT_NEAR(c.local.depth, r - ref.distance, 1e-12);
+      ASSERT_EQ(c.local.inside, ref.inside);
+      ASSERT_NEAR(c.local.depth, ref.inside ? r + ref.distance : r - ref.distance, 1e-12);
       // The world point is the reference's closest point mapped to the world (ties may pick another
       // triangle with the same point, so compare points, not indices).
       ASSERT_LT((c.point - scene.pose(i) * ref.point).norm(), 1e-9);
@@ -142,11 +150,12 @@ TEST_F(SceneTest, SeveralObjectsMatchBruteForcePerObject) {
   makeScene(scene);
   std::vector<SceneContact> contacts(scene.size());
   std::vector<QueryCache> caches(scene.size());
+  std::vector<char> followed(scene.size(), 0);
   std::size_t touching = 0, twoAtOnce = 0;
   for (const Vec3& p : scenePrabes(scene, 1500)) {
     SceneQueryResult out;
     scene.query(p, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out, caches.data());
-    expectMatchesReference(scene, p, kRadius, contacts.data(), out);
+    expectMatchesReference(scene, p, kRadius, contacts.data(), out, &followed);
     if (HasFatalFailure()) return;
     touching += out.contact;
     twoAtOnce += out.contacts >= 2;
@@ -256,6 +265,37 @@ TEST_F(SceneTest, ObjectWithoutLevelIsAnsweredByBruteForceThenBySwappedLevel) {
   scene.query(scene.pose(3) * box_->vertices[0], kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out);
   EXPECT_EQ(out.bruteForce, 0u);
   EXPECT_TRUE(out.contact);
+}
+
+// Issue 14, item 3 in a scene: pushing into the box (8 x 4 x 2 cm) from above its top face to its middle, the
+// summed penetration (the force's spring) grows at every step from the first touch, through the box's
+// level and through the brute-force fallback of an object without a level, with the per-object caches.
+TEST_F(SceneTest, PushingIntoAnObjectKeepsThePenetrationGrowing) {
+  for (const bool withLevel : {true, false}) {
+    SCOPED_TRACE(withLevel ? "level" : "brute force");
+    SceneDetector scene;
+    scene.addObject("box", box_, withLevel ? boxLevel_ : nullptr, Eigen::Isometry3d::Identity());
+    std::vector<SceneContact> contacts(1);
+    std::vector<QueryCache> caches(1);
+    double last = -1.0;
+    int touching = 0;
+    for (int i = 0; i <= 200; ++i) {
+      const Vec3 p(-0.1, 0.22, 0.03 + 2 * kRadius - (0.01 + 2 * kRadius) * i / 200.0);
+      SceneQueryResult out;
+      scene.query(p, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out, caches.data());
+      if (!out.contact) {
+        ASSERT_LT(last, 0.0) << "step " << i << ": the contact was lost while pushing in";
+        continue;
+      }
+      ++touching;
+      ASSERT_GT(out.penetration.norm(), last) << "step " << i;
+      ASSERT_GT(out.penetration.z(), 0.0) << "step " << i << ": pushes out through the top";
+      ASSERT_EQ(out.maxDepth, contacts[0].local.depth);
+      last = out.penetration.norm();
+    }
+    EXPECT_GT(touching, 150);
+    EXPECT_NEAR(last, kRadius + 0.01, 1e-9) << "at the middle: r + half the thickness";
+  }
 }
 
 TEST_F(SceneTest, InactiveObjectsAndAFullArray) {

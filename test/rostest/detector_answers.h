@@ -13,6 +13,7 @@
 
 #include "clod_haptics/Contact.h"
 #include "clod_haptics/DetectorStatus.h"
+#include "clod_haptics/core/brute_force.h"
 #include "test_timing.h"
 
 namespace clod_haptics_test {
@@ -85,6 +86,22 @@ class DetectorAnswers {
   std::map<ros::Time, geometry_msgs::WrenchStamped> forces_;
   clod_haptics::DetectorStatus status_;
 };
+
+/**
+ * \brief The reference for one answer of a detector's pose stream at p. bruteForceQuery, except where the
+ * detector answered a contact with the centre inside although no triangle is within r: a stream that was
+ * pushed into a part follows it deeper than r (QueryCache), and then the signed reference must agree that
+ * the centre is inside, at the same distance.
+ */
+inline clod_haptics::ContactResult streamReference(const clod_haptics::TriangleMesh& mesh, const clod_haptics::Vec3& p,
+                                                   double r, bool answeredInside) {
+  clod_haptics::ContactResult ref = clod_haptics::bruteForceQuery(mesh, p, r);
+  if (!ref.contact && answeredInside) {
+    const clod_haptics::ContactResult deep = clod_haptics::bruteForceSignedQuery(mesh, p, r);
+    if (deep.contact && deep.inside) return deep;
+  }
+  return ref;
+}
 
 /** \brief A dynamic_reconfigure request setting the given doubles and strings in one call. */
 inline dynamic_reconfigure::Reconfigure reconfigureRequest(const std::map<std::string, double>& doubles,

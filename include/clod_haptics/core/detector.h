@@ -22,7 +22,9 @@ enum class FastLevel : std::uint8_t {
 /**
  * \brief Per-stream state for temporal coherence: a haptic pointer moves little between two
  * queries, so the last cell and the last contact triangle are tried first. Owned by the caller (one
- * per stylus stream, not shared between threads); the answer is the same with or without it.
+ * per stylus stream, not shared between threads). Every contact within the pointer radius is answered
+ * the same with or without it; the cache adds one thing, deep penetration: after an answer with the
+ * centre inside, the stream keeps its contact when the centre goes deeper than the radius (see query()).
  */
 struct QueryCache {
   /// The detector that filled it, by ClodDetector::id() (never by address: a freed detector's address is
@@ -32,6 +34,9 @@ struct QueryCache {
   const void* cell = nullptr;         ///< that cell's index entry in the grid (null: empty cell)
   std::int32_t lastTriangle = -1;     ///< last contact triangle
   std::uint64_t hits = 0;             ///< queries that reused the cell (statistics)
+  /// The last answer was a contact with the centre inside: the next query follows it beyond the radius.
+  /// Kept across detectors (a level swap of the same part keeps the push); an invalid query leaves it.
+  bool lastInside = false;
 };
 
 /** \brief Parses "flat", "hierarchy" or "grid"; returns false for anything else. */
@@ -58,6 +63,15 @@ class ClodDetector {
    * \brief Answers whether the pointer (centre p, radius r) touches the mesh, and where.
    * A non-finite p or r, a negative r or one above kMaxRadius answers no contact. cache (optional) carries temporal
    * coherence between the queries of one stream.
+   *
+   * Depth is the signed penetration (ContactResult::depth): r - distance outside, r + distance with the
+   * centre behind the surface. Deep penetration, the centre more than r behind the surface, has no
+   * triangle within r: with a cache whose last answer was inside (exact or paper mode), the search grows
+   * (radius doubling from 2r, up to the model's bounding-box diagonal, for a centre inside that box) until
+   * it finds the nearest triangle; inside by pointBehindSurface, the answer is that contact (depth
+   * r + distance, as bruteForceSignedQuery), else no contact. Without a cache (stateless queries) a deep
+   * centre answers no contact, as bruteForceQuery. The deep search costs more than a bounded query (the
+   * hierarchy at growing radii; the flat level also scans the mesh's bounds) and still allocates nothing.
    */
   void query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
              QueryCache* cache = nullptr) const noexcept;

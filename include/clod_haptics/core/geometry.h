@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "clod_haptics/core/mesh.h"
 
@@ -18,6 +19,22 @@ enum class TriangleFeature : std::uint8_t { Face, Edge, Vertex };
  */
 inline Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,
                                    TriangleFeature* feature = nullptr);
+
+/**
+ * \brief Which feature of a triangle a closest point lies on, and which one: the region the
+ * inside/outside test needs (the pseudo-normal of that feature).
+ */
+struct TriangleRegion {
+  TriangleFeature feature = TriangleFeature::Face;
+  std::uint8_t index = 0;  ///< Edge: edge (index, index + 1 mod 3); Vertex: vertex index; Face: 0
+};
+
+/**
+ * \brief The closest point of closestPointOnTriangle (the same arithmetic, the same point) and its region.
+ * A point computed on an edge that lands on an end (parameter 0 or 1) is reported as that vertex.
+ * Not inline: the detector's hot loop calls the inline version; this one runs once per answer.
+ */
+Vec3 closestPointAndRegion(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, TriangleRegion& region);
 
 /** \brief Closest point on segment [a, b] to p; a zero-length segment gives a. */
 inline Vec3 closestPointOnSegment(const Vec3& p, const Vec3& a, const Vec3& b) {

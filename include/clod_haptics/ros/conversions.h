@@ -38,7 +38,9 @@ void toMsg(const ContactResult& result, const Vec3& pointer, double radius, Cont
 
 /**
  * \brief The penalty spring force of a contact: stiffness * depth along the outward normal, clamped
- * to maxForce when maxForce > 0; zero without contact. Torque is zero.
+ * to maxForce when maxForce > 0; zero without contact. depth is the signed penetration
+ * (ContactResult::depth: r - distance outside, r + distance inside), so the force grows monotonically
+ * while the stylus pushes in, up to the clamp. Torque is zero.
  */
 Vec3 penaltyForce(const ContactResult& result, double stiffness, double maxForce = 0.0);
 
