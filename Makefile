@@ -14,6 +14,9 @@ export ROS_LOG_DIR := $(BUILD)/ros_home/log
 # Debian packages the package needs (ROS 1 from Debian, no /opt/ros).
 APT_ROS := ros-base-dev python3-dynamic-reconfigure python3-rostest rosbash libtf2-ros-dev libgtest-dev \
   libeigen3-dev libassimp-dev rviz python3-geometry-msgs python3-visualization-msgs
+# Python modules the tests, the demo and the scripts import beyond ROS (scripts/soak.py, which
+# test/rostest/soak_short.test runs: numpy). `../shared/tools/check-deps` checks that nothing is missing.
+APT_PYTHON := python3-numpy
 APT_SCREENSHOT := xvfb xauth imagemagick
 APT_BENCH := libcgal-dev libfcl-dev libembree-dev libbenchmark-dev python3-matplotlib python3-numpy
 
@@ -37,7 +40,7 @@ define apt_install
 endef
 
 deps:
-	$(call apt_install,$(APT_ROS))
+	$(call apt_install,$(APT_ROS) $(APT_PYTHON))
 
 deps-screenshot:
 	$(call apt_install,$(APT_SCREENSHOT))

@@ -39,6 +39,13 @@ void requireFinite(double value, const char* name, bool positive) {
   }
 }
 
+/** A relative ~bag is the user's: found relative to $PWD first, since roslaunch runs nodes in $ROS_HOME. */
+BagReplayParams withBagResolved(const BagReplayParams& params) {
+  BagReplayParams p = params;
+  p.bag = resolveBagPath(p.bag);
+  return p;
+}
+
 }  // namespace
 
 BagReplayParams BagReplay::readParameters(const ros::NodeHandle& pnh) {
@@ -81,7 +88,10 @@ BagReplayParams BagReplay::readParameters(const ros::NodeHandle& pnh) {
 }
 
 BagReplay::BagReplay(ros::NodeHandle nh, ros::NodeHandle pnh)
-    : nh_(nh), pnh_(pnh), params_(readParameters(pnh)), motion_(readStylusBag(params_.bag, params_.read)) {
+    : nh_(nh),
+      pnh_(pnh),
+      params_(withBagResolved(readParameters(pnh))),
+      motion_(readStylusBag(params_.bag, params_.read)) {
   if (params_.fit) {
     params_.transform = motion_.trajectory.fitInto(params_.fitCenter, params_.fitSize, params_.transform.rotation);
   }

@@ -12,6 +12,8 @@
 #include <limits>
 #include <map>
 
+#include "clod_haptics/core/user_path.h"
+
 namespace clod_haptics {
 namespace device {
 
@@ -47,6 +49,13 @@ std::string listTopics(const std::map<std::string, std::string>& topics) {
 }
 
 }  // namespace
+
+std::string resolveBagPath(const std::string& path) {
+  if (path.empty() || path.front() == '/') return path;
+  const UserPathResolution resolved = resolveUserPath(path);
+  if (!resolved.found()) throw BagReadError("bag '" + path + "': not found: tried " + resolved.triedText());
+  return resolved.path;
+}
 
 BagMotion readStylusBag(const std::string& path, const BagReadOptions& options) {
   const std::string where = "bag '" + path + "': ";

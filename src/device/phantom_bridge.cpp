@@ -96,7 +96,9 @@ std::unique_ptr<HapticDevice> PhantomBridge::createDevice(const ros::NodeHandle&
     throw DeviceError(
         "~backend 'openhaptics': this build has no OpenHaptics support (the HD headers and library were not "
         "found at configure time). Install the OpenHaptics SDK and rebuild with -DCLOD_WITH_OPENHAPTICS=ON "
-        "(-DOPENHAPTICS_ROOT=<dir> if it is not under /usr or /opt/OpenHaptics), or use backend:=simulated");
+        "(-DOPENHAPTICS_ROOT=<dir> if it is not under /usr or /opt/OpenHaptics); or run the simulated device: "
+        "roslaunch clod_haptics clod_haptics.launch device:=phantom backend:=simulated, or "
+        "CLOD_PHANTOM_BACKEND=simulated roslaunch clod_haptics clod_haptics.launch device:=phantom");
 #endif
   }
   throw DeviceError("~backend must be 'simulated' or 'openhaptics', got '" + backend + "'");

@@ -8,8 +8,10 @@
 #include <std_msgs/String.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 #include "clod_haptics/device/bag_source.h"
 #include "clod_haptics/test_config.h"
@@ -78,7 +80,64 @@ std::string errorOf(const std::string& path, const BagReadOptions& options = {})
   return "";
 }
 
+/** Sets $PWD (the directory roslaunch was started from) for one test and puts the old value back. */
+class ScopedPwd {
+ public:
+  explicit ScopedPwd(const std::string& value) {
+    if (const char* old = std::getenv("PWD")) old_ = old;
+    setenv("PWD", value.c_str(), 1);
+  }
+  ~ScopedPwd() {
+    if (old_) {
+      setenv("PWD", old_->c_str(), 1);
+    } else {
+      unsetenv("PWD");
+    }
+  }
+
+ private:
+  std::optional<std::string> old_;
+};
+
 }  // namespace
+
+TEST(BagSource, RelativeBagPathIsResolvedAgainstTheLaunchDirectory) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::path(::testing::TempDir()) / "clod_device_relative_bag";
+  fs::remove_all(root);
+  fs::create_directories(root / "shell" / "here");
+  const std::string written = writePoseBag("relative.bag", 0.1);
+  fs::copy_file(written, root / "shell" / "stylus.bag", fs::copy_options::overwrite_existing);
+  const std::string expected = fs::canonical(root / "shell" / "stylus.bag").string();
+  ScopedPwd pwd((root / "shell" / "here").string());  // as if roslaunch ran in shell/here, the node in ROS_HOME
+  EXPECT_EQ(resolveBagPath("../stylus.bag"), expected);
+  EXPECT_EQ(readStylusBag(resolveBagPath("../stylus.bag")).messages, 101u);
+  // Absolute paths are left to readStylusBag, which names them when missing.
+  EXPECT_EQ(resolveBagPath("/nonexistent/dir/stylus.bag"), "/nonexistent/dir/stylus.bag");
+  fs::remove_all(root);
+}
+
+TEST(BagSource, MissingRelativeBagNamesEveryPathTried) {
+  namespace fs = std::filesystem;
+  const fs::path shell = fs::weakly_canonical(fs::path(::testing::TempDir()) / "clod_device_shell");
+  fs::create_directories(shell);
+  ScopedPwd pwd(shell.string());
+  try {
+    resolveBagPath("../no_such_stylus.bag");
+    FAIL() << "a missing relative bag must throw";
+  } catch (const BagReadError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("bag '../no_such_stylus.bag'"), std::string::npos) << what;
+    EXPECT_NE(
+        what.find((shell.parent_path() / "no_such_stylus.bag").string() + " (relative to the launch directory $PWD)"),
+        std::string::npos)
+        << what;
+    EXPECT_NE(what.find(fs::weakly_canonical(fs::current_path() / "../no_such_stylus.bag").string() +
+                        " (the node's working directory)"),
+              std::string::npos)
+        << what;
+  }
+}
 
 TEST(BagSource, ReadsPoseStampedBags) {
   const std::string path = writePoseBag("pose.bag", 0.5);

@@ -12,7 +12,7 @@ namespace device {
 
 /** \brief Everything bag_replay reads from the parameter server. */
 struct BagReplayParams {
-  std::string bag;               ///< ~bag, required
+  std::string bag;               ///< ~bag, required; the constructor makes a relative one absolute (resolveBagPath)
   BagReadOptions read;           ///< ~topic, ~joint_topic, ~position_scale
   std::string name = "phantom";  ///< ~omni_name: topic prefix, as the bridge
   std::string frameId;           ///< ~frame_id; empty: the bag's PoseStamped frame, else "world"
@@ -42,7 +42,8 @@ class BagReplay {
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
   /**
    * \brief Reads the parameters and the bag.
-   * \throws std::invalid_argument for a bad parameter, BagReadError for a bag that cannot be used.
+   * \throws std::invalid_argument for a bad parameter, BagReadError for a bag that cannot be used (a
+   * relative ~bag found neither relative to $PWD nor to the working directory: every path tried is named).
    */
   BagReplay(ros::NodeHandle nh, ros::NodeHandle pnh);
 

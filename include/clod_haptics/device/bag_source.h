@@ -53,5 +53,14 @@ struct BagMotion {
  */
 BagMotion readStylusBag(const std::string& path, const BagReadOptions& options = {});
 
+/**
+ * \brief The bag a user named (bag_replay's ~bag, CLOD_BAG) as a file path: an absolute path as it
+ * is (readStylusBag reports a missing one); a relative or `~/` path looked for relative to the
+ * directory roslaunch was started from ($PWD), then the node's working directory ($ROS_HOME under
+ * roslaunch): the same rule as mesh parameters (resolveUserPath, core/user_path.h).
+ * \throws BagReadError when a relative path exists in none of them; the message names every path tried.
+ */
+std::string resolveBagPath(const std::string& path);
+
 }  // namespace device
 }  // namespace clod_haptics
