@@ -183,6 +183,8 @@ void PhantomBridge::tick(double now) {
   const ros::Time stamp = ros::Time::now();
   if (haveState) {
     geometry_msgs::PoseStamped pose;
+    // Consecutive numbers, as bag_replay gives them: the detector counts a gap as poses lost on the way.
+    pose.header.seq = static_cast<std::uint32_t>(++posesPublished_);
     pose.header.stamp = stamp;
     pose.header.frame_id = params_.frameId;
     toPoseMsg(state.position, state.orientation, pose.pose);

@@ -4,8 +4,16 @@
 #include <tf2/exceptions.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <pthread.h>
+#include <sched.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <chrono>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "clod_haptics/Contact.h"
@@ -25,6 +33,21 @@ namespace {
 double msSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
+
+// Background threads (level builds, markers) yield the CPU to the pose thread: on a 2-core machine a level
+// build or a mesh marker would otherwise take the core the pose thread needs. Raising one's own nice value
+// needs no privilege.
+void lowerThisThreadPriority(int nice) {
+  thread_local bool done = false;
+  if (done) return;
+  done = true;
+  const auto tid = static_cast<id_t>(::syscall(SYS_gettid));
+  if (::setpriority(PRIO_PROCESS, tid, nice) != 0) {
+    ROS_DEBUG("detector: could not lower a background thread's priority: %s", std::strerror(errno));
+  }
+}
+
+const char* toString(PosePolicy policy) { return policy == PosePolicy::Latest ? "latest" : "all"; }
 }  // namespace
 
 HapticDetector::HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh), displayPnh_(pnh) {
@@ -39,6 +62,8 @@ HapticDetector::HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   ROS_INFO("detector: loaded '%s' (%zu triangles) in frame '%s'; poses from %s", path.c_str(), mesh_->size(),
            meshFrame_.c_str(), nh_.resolveName(poseTopic_).c_str());
 
+  poseNh_ = nh_;
+  poseNh_.setCallbackQueue(&poseQueue_);
   contactPub_ = pnh_.advertise<Contact>("contact", static_cast<std::uint32_t>(publishQueueSize_));
   forcePub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("force", static_cast<std::uint32_t>(publishQueueSize_));
   statusPub_ = pnh_.advertise<DetectorStatus>("status", 1, true);
@@ -54,8 +79,11 @@ HapticDetector::HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   reconfigure_ = std::make_unique<dynamic_reconfigure::Server<DetectorConfig>>(configMutex_, displayPnh_);
   reconfigure_->setCallback([this](DetectorConfig& config, std::uint32_t level) { onReconfigure(config, level); });
 
-  poseSub_ = nh_.subscribe(poseTopic_, static_cast<std::uint32_t>(poseQueueSize_), &HapticDetector::onPose, this,
-                           ros::TransportHints().tcpNoDelay());
+  poseSub_ = poseNh_.subscribe(poseTopic_, static_cast<std::uint32_t>(poseQueueSize_), &HapticDetector::onPose, this,
+                               ros::TransportHints().tcpNoDelay());
+  poseThread_ = std::thread(&HapticDetector::poseLoop, this);
+  ROS_INFO("detector: pose policy '%s', pose queue %d, publish queue %d", toString(posePolicy_), poseQueueSize_,
+           publishQueueSize_);
   displayTimer_ =
       displayPnh_.createSteadyTimer(ros::WallDuration(1.0 / markerRate_), &HapticDetector::onDisplayTimer, this);
   statusTimer_ = displayPnh_.createSteadyTimer(ros::WallDuration(1.0), &HapticDetector::onStatusTimer, this);
@@ -66,6 +94,8 @@ HapticDetector::HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
 
 HapticDetector::~HapticDetector() {
   poseSub_.shutdown();
+  poseStop_ = true;
+  if (poseThread_.joinable()) poseThread_.join();
   displayTimer_.stop();
   statusTimer_.stop();
   if (displaySpinner_) displaySpinner_->stop();
@@ -89,8 +119,20 @@ void HapticDetector::readParameters() {
   pnh_.param("normalize", normalize_, false);
   pnh_.param("use_service", useService_, true);
   pnh_.param("service_timeout", serviceTimeout_, 5.0);
-  pnh_.param("pose_queue_size", poseQueueSize_, 100);
-  pnh_.param("publish_queue_size", publishQueueSize_, 100);
+  pnh_.param("pose_queue_size", poseQueueSize_, 5000);
+  pnh_.param("publish_queue_size", publishQueueSize_, 5000);
+  pnh_.param("realtime_priority", realtimePriority_, 0);
+  std::string policy;
+  pnh_.param<std::string>("pose_policy", policy, "all");
+  if (policy == "all") {
+    posePolicy_ = PosePolicy::All;
+  } else if (policy == "latest") {
+    posePolicy_ = PosePolicy::Latest;
+  } else {
+    throw InvalidParameter("~pose_policy must be all (answer every pose) or latest (skip a pose a newer one waits "
+                           "behind), not '" + policy + "'");
+  }
+  if (realtimePriority_ < 0 || realtimePriority_ > 99) throw InvalidParameter("~realtime_priority must be in 0..99");
   pnh_.param("marker_rate", markerRate_, 30.0);
   std::string fast;
   pnh_.param<std::string>("fast_level", fast, "grid");
@@ -118,8 +160,54 @@ void HapticDetector::readParameters() {
 // ------------------------------------------------------------------------------------------------
 // The haptic path.
 
-void HapticDetector::onPose(const geometry_msgs::PoseStampedConstPtr& msg) {
+void HapticDetector::poseLoop() {
+  if (realtimePriority_ > 0) {
+    sched_param param{};
+    param.sched_priority = realtimePriority_;
+    const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
+    if (err != 0) {
+      ROS_WARN("detector: ~realtime_priority %d: the pose thread stays on the default scheduler (%s; allow it "
+               "with 'ulimit -r %d' or an rtprio limit in /etc/security/limits.conf)",
+               realtimePriority_, std::strerror(err), realtimePriority_);
+    } else {
+      ROS_INFO("detector: pose thread at SCHED_FIFO priority %d", realtimePriority_);
+    }
+  }
+  // One callback at a time: while a pose is answered, poseQueue_ holds exactly the poses that arrived since.
+  while (!poseStop_.load(std::memory_order_relaxed)) poseQueue_.callOne(ros::WallDuration(0.05));
+}
+
+void HapticDetector::countSequence(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event) {
+  const std::uint32_t seq = event.getConstMessage()->header.seq;
+  const std::string& publisher = event.getPublisherName();
+  if (seq == 0) {  // roscpp publishers leave it 0 unless the code numbers its poses: nothing to count by
+    haveSeq_ = false;
+    return;
+  }
+  const bool samePublisher = haveSeq_ && publisher == lastPublisher_;
+  if (samePublisher) {
+    const std::uint32_t step = seq - lastSeq_;  // modulo 2^32: a wrapped counter still steps by 1
+    // A step back (a restarted publisher, a replay looping) starts counting again; a step forward by k > 1
+    // means k - 1 poses were published that never reached this callback.
+    if (step > 1u && step < (1u << 31)) {
+      lostUpstream_.fetch_add(step - 1u, std::memory_order_relaxed);
+    }
+  } else {
+    lastPublisher_ = publisher;  // allocates only when the publisher changes
+  }
+  lastSeq_ = seq;
+  haveSeq_ = true;
+}
+
+void HapticDetector::onPose(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event) {
+  const geometry_msgs::PoseStampedConstPtr& msg = event.getConstMessage();
   received_.fetch_add(1, std::memory_order_relaxed);
+  countSequence(event);
+  if (posePolicy_ == PosePolicy::Latest && !poseQueue_.isEmpty()) {
+    // A newer pose is already waiting: its answer is the one the device can use.
+    skippedStale_.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
   if (!isFinite(msg->pose)) {
     droppedNonFinite_.fetch_add(1, std::memory_order_relaxed);
     ROS_WARN_THROTTLE(1.0, "detector: dropped a pose with a NaN or Inf component (%lu so far)",
@@ -188,10 +276,16 @@ void HapticDetector::onPose(const geometry_msgs::PoseStampedConstPtr& msg) {
   wrench->header.frame_id = poseFrame.empty() ? meshFrame_ : poseFrame;
   toMsg(transformed ? Vec3(rotation.conjugate() * forceMesh) : forceMesh, wrench->wrench);
 
+  // Consecutive numbers: a subscriber that sees a gap knows an answer was lost on the way to it.
+  const auto answer = static_cast<std::uint32_t>(published_.load(std::memory_order_relaxed) + 1);
+  contact->header.seq = answer;
+  wrench->header.seq = answer;
   contactPub_.publish(contact);
   forcePub_.publish(wrench);
   published_.fetch_add(1, std::memory_order_relaxed);
+  if (!ros::Time::isSimTime()) posePath_.record((ros::Time::now() - event.getReceiptTime()).toNSec());
 
+  if (!markersWanted_.load(std::memory_order_relaxed)) return;
   std::lock_guard<std::mutex> lock(lastMutex_);
   last_.valid = true;
   last_.pointer = p;
@@ -245,7 +339,16 @@ void HapticDetector::requestLevel(double distance) {
   workerCv_.notify_all();
 }
 
+void HapticDetector::retire(std::shared_ptr<const Level> old) {
+  // The pose thread holds a level for one callback (microseconds), the display thread for one marker frame:
+  // wait for them to let go so that the free (a level is megabytes of small arrays) happens here, never
+  // on the haptic path. If a holder keeps it longer, that holder frees it.
+  for (int i = 0; i < 1000 && old && old.use_count() > 1; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  old.reset();
+}
+
 void HapticDetector::levelWorker() {
+  lowerThisThreadPriority(10);
   for (;;) {
     double distance;
     {
@@ -259,12 +362,14 @@ void HapticDetector::levelWorker() {
     if (current && current->distance == distance) continue;
     try {
       auto level = makeLevel(distance);
-      std::atomic_store(&level_, level);
+      auto old = std::atomic_exchange(&level_, std::shared_ptr<const Level>(level));
       swaps_.fetch_add(1, std::memory_order_relaxed);
       staticDirty_ = true;
       ROS_INFO("detector: level d = %g with %u spheres in use (%s, %.1f ms)", level->distance, level->spheres,
                level->source.c_str(), level->readyMs);
       publishStatus();
+      level.reset();
+      retire(std::move(old));
     } catch (const std::exception& e) {
       ROS_ERROR("detector: could not prepare level d = %g: %s; keeping the current level", distance, e.what());
     }
@@ -324,16 +429,47 @@ std::shared_ptr<const HapticDetector::Level> HapticDetector::makeLevel(double di
 // ------------------------------------------------------------------------------------------------
 // Display and status (display thread).
 
-void HapticDetector::onStatusTimer(const ros::SteadyTimerEvent&) { publishStatus(); }
+void HapticDetector::onStatusTimer(const ros::SteadyTimerEvent&) {
+  lowerThisThreadPriority(5);
+  // Loss is never silent: warn (at most every 5 s) whenever a counter grew.
+  const std::uint64_t skipped = skippedStale_.load(), lost = lostUpstream_.load();
+  if (lost > warnedLost_) {
+    ROS_WARN_THROTTLE(5.0, "detector: %lu poses lost before reaching the detector (gaps in the pose stream's "
+                      "header.seq; %lu in all): a publisher or roscpp queue dropped them",
+                      static_cast<unsigned long>(lost - warnedLost_), static_cast<unsigned long>(lost));
+    warnedLost_ = lost;
+  }
+  if (skipped > warnedSkipped_) {
+    ROS_WARN_THROTTLE(5.0, "detector: skipped %lu stale poses (pose_policy latest: a newer pose was waiting; %lu "
+                      "in all): the detector falls behind the stream",
+                      static_cast<unsigned long>(skipped - warnedSkipped_), static_cast<unsigned long>(skipped));
+    warnedSkipped_ = skipped;
+  }
+  publishStatus();
+}
 
 void HapticDetector::publishStatus() {
   auto status = boost::make_shared<DetectorStatus>();
   status->header.stamp = ros::Time::now();
   status->header.frame_id = meshFrame_;
+  {
+    std::lock_guard<std::mutex> lock(statusMutex_);  // the worker publishes on a swap, the display thread each second
+    status->sequence = ++statusSequence_;
+  }
   status->poses_received = received_.load();
   status->contacts_published = published_.load();
   status->dropped_non_finite = droppedNonFinite_.load();
   status->dropped_unknown_frame = droppedFrame_.load();
+  status->poses_lost_upstream = lostUpstream_.load();
+  status->poses_skipped_stale = skippedStale_.load();
+  status->pose_policy = toString(posePolicy_);
+  status->pose_queue_size = static_cast<std::uint32_t>(poseQueueSize_);
+  status->publish_queue_size = static_cast<std::uint32_t>(publishQueueSize_);
+  status->pose_path_p50_us = posePath_.percentileUs(50.0);
+  status->pose_path_p99_us = posePath_.percentileUs(99.0);
+  status->pose_path_p999_us = posePath_.percentileUs(99.9);
+  status->pose_path_max_us = posePath_.maxUs();
+  status->pose_path_period_max_us = posePath_.takePeriodMaxUs();
   status->answered_without_level = bruteForce_.load();
   status->level_swaps = swaps_.load();
   status->requested_distance = requestedDistance_.load();
@@ -346,7 +482,10 @@ void HapticDetector::publishStatus() {
 }
 
 void HapticDetector::onDisplayTimer(const ros::SteadyTimerEvent&) {
-  if (markerPub_.getNumSubscribers() == 0) return;
+  lowerThisThreadPriority(5);
+  const bool wanted = markerPub_.getNumSubscribers() > 0;
+  markersWanted_.store(wanted, std::memory_order_relaxed);
+  if (!wanted) return;
   publishMarkers();
 }
 
@@ -362,7 +501,8 @@ void HapticDetector::publishMarkers() {
   header.frame_id = meshFrame_;
   header.stamp = ros::Time(0);
 
-  if (staticDirty_.exchange(false) || level != shownLevel_) {
+  const std::uint64_t levelId = level ? level->detector->id() : 0;
+  if (staticDirty_.exchange(false) || levelId != shownLevelId_) {
     if (showMesh_) {
       array->markers.push_back(meshMarker(*mesh_, header, makeColor(0.75f, 0.75f, 0.78f, 1.0f)));
     } else {
@@ -377,7 +517,7 @@ void HapticDetector::publishMarkers() {
       appendSphereMarkers(empty, nullptr, marker_ns::kSpheres, header, makeColor(0, 0, 0, 0), shownSpheres_, *array);
       shownSpheres_ = 0;
     }
-    shownLevel_ = level;
+    shownLevelId_ = levelId;
   }
 
   if (last.valid) {

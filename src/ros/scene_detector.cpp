@@ -85,8 +85,8 @@ SceneHapticDetector::SceneHapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh
            static_cast<unsigned long>(assets_->meshCache() ? assets_->meshCache()->hits() : 0), config_.frameId.c_str(),
            assets_->cache()->directory().c_str());
 
-  contactsPub_ = pnh_.advertise<ContactArray>("contacts", 100);
-  forcePub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("force", 100);
+  contactsPub_ = pnh_.advertise<ContactArray>("contacts", 5000);  // 5 s at 1 kHz for a slow subscriber
+  forcePub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("force", 5000);
   // A new marker subscriber gets the meshes and levels once; afterwards only what changes.
   markerPub_ = displayPnh_.advertise<visualization_msgs::MarkerArray>(
       "markers", 10, [this](const ros::SingleSubscriberPublisher&) { staticDirty_ = true; },
@@ -131,7 +131,7 @@ void SceneHapticDetector::readParameters() {
   pnh_.param("cache_meshes", cacheMeshes_, true);
   pnh_.param("grid_on_demand", gridOnDemand_, true);
   pnh_.param("detectors_on_demand", detectorsOnDemand_, false);
-  pnh_.param("pose_queue_size", poseQueueSize_, 100);
+  pnh_.param("pose_queue_size", poseQueueSize_, 5000);
   std::string mode, fast;
   pnh_.param<std::string>("detection_mode", mode, "exact");
   pnh_.param<std::string>("fast_level", fast, "grid");

@@ -281,6 +281,76 @@ TEST(Detector, ReconfigureDuringAStreamChangesTheLevelAndAnswersEveryPose) {
   EXPECT_TRUE(levelsSeen.count(spheres1)) << "no pose answered by the new level";
 }
 
+// A level swap frees the old level while the pose stream's QueryCache still remembers a cell of it, and the
+// next level is often allocated at the same address. Two swaps with no pose in between, six times over (the
+// manager died within six such cycles when the cache recognised its detector by address): every answer after
+// them against brute force, and the detector still answering at the end.
+TEST(Detector, TwoReconfiguresWithoutAPoseBetweenThenEveryAnswerMatchesBruteForce) {
+  DetectorClient& dc = client();
+  ASSERT_TRUE(dc.waitReady());
+  const std::vector<double> distances = {0.0, 0.004, 0.002, 0.006};
+  const auto points = dc.probes(120, 30, 57);
+  std::size_t checked = 0, next = 0;
+  auto sendAndCheck = [&](std::size_t count) {
+    std::vector<std::pair<ros::Time, Vec3>> sent;
+    for (std::size_t k = 0; k < count; ++k, ++next) {
+      const Vec3& pMesh = points[next % points.size()];
+      sent.emplace_back(dc.publish(dc.meshToPose() * pMesh), pMesh);
+      ros::WallDuration(0.001).sleep();
+    }
+    Contact c;
+    geometry_msgs::WrenchStamped f;
+    for (const auto& s : sent) {
+      ASSERT_TRUE(dc.waitAnswer(s.first, c, f, 5.0)) << "a pose after the swaps was not answered";
+      dc.expectMatchesReference(s.second, c, f);
+      ++checked;
+    }
+  };
+  sendAndCheck(40);  // the cache now holds a cell of the current level
+  for (int cycle = 0; cycle < 6; ++cycle) {
+    for (int swap = 0; swap < 2; ++swap) {
+      const double d = distances[(2 * cycle + swap) % distances.size()];
+      ASSERT_TRUE(dc.setClusteringDistance(d));
+      ASSERT_TRUE(dc.waitStatus([&](const DetectorStatus& st) { return st.clustering_distance == d; }, 60.0))
+          << "cycle " << cycle << ": the level for d = " << d << " never arrived";
+    }
+    // The first pose after the swaps is the last one before them: the cell the stale cache entry names.
+    next -= 1;
+    sendAndCheck(40);
+  }
+  EXPECT_EQ(checked, 40u * 7u);
+  const std::uint64_t before = dc.status().sequence;
+  EXPECT_TRUE(dc.waitStatus([&](const DetectorStatus& st) { return st.sequence > before; }, 5.0))
+      << "no status heartbeat after the swaps";
+}
+
+// The status is a heartbeat a watchdog can use, and says how poses are handled and what was lost.
+TEST(Detector, StatusIsAHeartbeatWithLossCountersAndThePosePath) {
+  DetectorClient& dc = client();
+  ASSERT_TRUE(dc.waitReady());
+  const ros::Time stamp = dc.publish(dc.meshToPose() * dc.probes(1, 0, 3).front());
+  Contact c;
+  geometry_msgs::WrenchStamped f;
+  ASSERT_TRUE(dc.waitAnswer(stamp, c, f));
+  const DetectorStatus first = dc.status();
+  ASSERT_TRUE(dc.waitStatus([&](const DetectorStatus& st) { return st.sequence >= first.sequence + 2; }, 5.0))
+      << "the status stopped beating";
+  const DetectorStatus s = dc.status();
+  EXPECT_GE((s.header.stamp - first.header.stamp).toSec(), 0.5);
+  EXPECT_TRUE(s.pose_policy == "all" || s.pose_policy == "latest") << s.pose_policy;
+  EXPECT_GE(s.pose_queue_size, 1u);
+  EXPECT_GE(s.publish_queue_size, 1u);
+  // The test's poses carry no header.seq (roscpp leaves it 0): nothing can be counted lost from them.
+  EXPECT_EQ(s.poses_lost_upstream, 0u);
+  EXPECT_GT(s.pose_path_max_us, 0.0);
+  EXPECT_LE(s.pose_path_p50_us, s.pose_path_p999_us);
+  EXPECT_LE(s.pose_path_p999_us, s.pose_path_max_us);
+  // Answers are numbered consecutively for their subscribers.
+  EXPECT_GT(c.header.seq, 0u);
+  EXPECT_LE(c.header.seq, s.contacts_published);
+  EXPECT_EQ(f.header.seq, c.header.seq);
+}
+
 TEST(Detector, DetectionModeAndPointerRadiusFollowReconfigure) {
   DetectorClient& dc = client();
   ASSERT_TRUE(dc.waitReady());
@@ -302,6 +372,18 @@ TEST(Detector, DetectionModeAndPointerRadiusFollowReconfigure) {
     ASSERT_TRUE(parseDetectionMode(name, mode));
     // The reconfigure callback stores the settings before it answers: every pose sent after it uses them.
     ASSERT_TRUE(dc.reconfigure({{"pointer_radius", r}}, {{"detection_mode", name}}));
+    // The reference answers the same stream as the node (a QueryCache: a stream pushed into the part follows
+    // it deeper than r). A pose far outside first ends any penetration the node's stream still follows.
+    QueryCache stream;
+    const Vec3 far = dc.mesh().bounds().max() + Vec3::Constant(10.0 * dc.mesh().diagonal());
+    {
+      Contact c;
+      geometry_msgs::WrenchStamped f;
+      ASSERT_TRUE(dc.waitAnswer(dc.publish(dc.meshToPose() * far), c, f));
+      ContactResult none;
+      reference.query(far, r, mode, none, &stream);
+      ASSERT_FALSE(c.in_contact || none.contact);
+    }
     std::size_t touching = 0;
     for (const Vec3& p : points) {
       Contact c;
@@ -311,7 +393,7 @@ TEST(Detector, DetectionModeAndPointerRadiusFollowReconfigure) {
       EXPECT_DOUBLE_EQ(c.clustering_distance, d);
       ASSERT_EQ(c.level_spheres, set->size());
       ContactResult expected;
-      reference.query(p, r, mode, expected);
+      reference.query(p, r, mode, expected, &stream);
       EXPECT_EQ(c.in_contact, expected.contact) << name << " probe " << p.transpose();
       if (c.in_contact && expected.contact) {
         EXPECT_NEAR(c.distance, expected.distance, 1e-9) << name;

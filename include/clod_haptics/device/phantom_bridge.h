@@ -94,6 +94,7 @@ class PhantomBridge {
   std::thread servo_;
   std::atomic<bool> running_{false};
   std::atomic<std::uint64_t> ticks_{0};
+  std::uint64_t posesPublished_ = 0;  // tick thread only: header.seq of the poses
   bool buttonsKnown_ = false;
   std::uint32_t lastButtons_ = 0;
   ForceStatus lastStatus_ = ForceStatus::NoCommand;

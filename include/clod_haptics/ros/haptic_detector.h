@@ -3,6 +3,7 @@
 #include <dynamic_reconfigure/server.h>
 #include <geometry_msgs/PoseStamped.h>
 #include <ros/callback_queue.h>
+#include <ros/message_event.h>
 #include <ros/ros.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
@@ -19,19 +20,31 @@
 #include "clod_haptics/DetectorConfig.h"
 #include "clod_haptics/core/contact.h"
 #include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/latency_histogram.h"
 #include "clod_haptics/core/sphere_set.h"
 
 namespace clod_haptics {
 
+/** \brief What the detector does with poses that arrive faster than it answers (~pose_policy). */
+enum class PosePolicy {
+  All,     ///< answer every pose in order (recorded input, tests): nothing skipped, a backlog is worked off
+  Latest,  ///< a live device: a pose with a newer one already waiting is skipped (counted), never answered late
+};
+
 /**
  * \brief The detector glue shared by the nodelet and the standalone node: stylus pose in, contact
- * and penalty force out, one of each per pose.
+ * and penalty force out, one of each per answered pose.
  *
- * Threads: poses arrive on the caller's node handle (the haptic path: a tf2 lookup when the frames
- * differ, one allocation-free core query, two publishes). Markers, status and dynamic_reconfigure
- * run on a private display queue with its own thread. A worker thread fetches a new level from
- * sphere_builder (or builds it locally) and swaps it in with an atomic shared_ptr store, so no pose
- * waits for a build.
+ * Threads: poses arrive on a callback queue of their own, served by the pose thread (the haptic path:
+ * a tf2 lookup when the frames differ, one allocation-free core query, two publishes), so nothing else
+ * queued in the nodelet manager delays a pose. Markers, status and dynamic_reconfigure run on a private
+ * display queue with its own thread. A worker thread (at a lower scheduling priority) fetches a new level
+ * from sphere_builder (or builds it locally), swaps it in with an atomic shared_ptr exchange and frees the
+ * old one itself, so no pose waits for a build or a free.
+ *
+ * Loss accounting (DetectorStatus): poses_lost_upstream counts gaps in the pose stream's header.seq
+ * (poses that never reached the detector), poses_skipped_stale the poses the Latest policy skipped; the
+ * answers carry consecutive header.seq numbers, so a subscriber sees any answer lost on the way to it.
  */
 class HapticDetector {
  public:
@@ -66,7 +79,10 @@ class HapticDetector {
   };
 
   void readParameters();
-  void onPose(const geometry_msgs::PoseStampedConstPtr& msg);
+  void poseLoop();
+  void onPose(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event);
+  void countSequence(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event);
+  void retire(std::shared_ptr<const Level> old);
   void onReconfigure(DetectorConfig& config, std::uint32_t level);
   void requestLevel(double distance);
   void levelWorker();
@@ -79,6 +95,10 @@ class HapticDetector {
 
   ros::NodeHandle nh_;
   ros::NodeHandle pnh_;
+  ros::CallbackQueue poseQueue_;  // the pose subscription alone: its emptiness means no newer pose waits
+  ros::NodeHandle poseNh_;
+  std::thread poseThread_;
+  std::atomic<bool> poseStop_{false};
   ros::CallbackQueue displayQueue_;
   ros::NodeHandle displayPnh_;
   std::unique_ptr<ros::AsyncSpinner> displaySpinner_;
@@ -92,8 +112,10 @@ class HapticDetector {
   bool normalize_ = false;
   double serviceTimeout_ = 5.0;
   bool useService_ = true;
-  int poseQueueSize_ = 100;
-  int publishQueueSize_ = 100;  // contacts and forces kept per subscriber that reads too slowly
+  PosePolicy posePolicy_ = PosePolicy::All;
+  int poseQueueSize_ = 5000;     // poses roscpp keeps for the detector (5 s at 1 kHz); a gap beyond it is counted
+  int publishQueueSize_ = 5000;  // contacts and forces kept per subscriber that reads too slowly
+  int realtimePriority_ = 0;     // SCHED_FIFO priority of the pose thread; 0: the default scheduler
   double markerRate_ = 30.0;
   FastLevel fastLevel_ = FastLevel::Grid;
   double gridRadius_ = 0.0;  // 0: the core's default (1% of the model's diagonal)
@@ -126,7 +148,17 @@ class HapticDetector {
 
   // Counters.
   std::atomic<std::uint64_t> received_{0}, published_{0}, droppedNonFinite_{0}, droppedFrame_{0}, bruteForce_{0},
-      swaps_{0};
+      swaps_{0}, skippedStale_{0}, lostUpstream_{0};
+  // Pose thread only: the last header.seq per publisher, for gaps.
+  std::string lastPublisher_;
+  std::uint32_t lastSeq_ = 0;
+  bool haveSeq_ = false;
+  // Pose path: receipt by roscpp to both answers published (microseconds), and the status heartbeat.
+  LatencyHistogram posePath_;
+  std::uint64_t statusSequence_ = 0;  // display thread and worker, under statusMutex_
+  std::mutex statusMutex_;
+  std::uint64_t warnedSkipped_ = 0, warnedLost_ = 0;  // display thread
+  std::atomic<bool> markersWanted_{false};  // someone subscribes to ~markers: keep the last query for them
 
   // Last query, for markers.
   std::mutex lastMutex_;
@@ -134,7 +166,7 @@ class HapticDetector {
 
   // Display state (display thread only, except staticDirty_).
   std::atomic<bool> staticDirty_{true};
-  std::shared_ptr<const Level> shownLevel_;
+  std::uint64_t shownLevelId_ = 0;  // ClodDetector::id() of the level drawn last (an id is never reused)
   std::size_t shownSpheres_ = 0;
   std::size_t shownHit_ = 0;
   std::vector<std::uint32_t> hitBuffer_;

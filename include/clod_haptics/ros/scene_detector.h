@@ -106,7 +106,7 @@ class SceneHapticDetector {
   bool cacheMeshes_ = true;
   bool gridOnDemand_ = true;
   bool detectorsOnDemand_ = false;
-  int poseQueueSize_ = 100;
+  int poseQueueSize_ = 5000;
 
   // Core.
   std::unique_ptr<SceneAssets> assets_;
