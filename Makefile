@@ -116,8 +116,8 @@ demo-core: build
 screenshot: build deps-screenshot
 	@$(SETUP) && $(ROOT)/scripts/screenshot.sh $(BUILD)/screenshot.png
 
-# Soak (issue 6): the detector nodelet (launch/soak.launch) under a 1 kHz pose stream for SOAK_SECONDS
-# (default 600) with ~markers subscribed and clustering_distance reconfigured every 3 s (scripts/soak.py).
+# Soak: the shipped launch/clod_haptics.launch with its defaults under a 1 kHz pose stream for SOAK_SECONDS
+# (default 600) with ~markers subscribed and a `dynparam set` process started every second (scripts/soak.py).
 # Its own master on a free port; mesh ../shared mannequin-devil.off scaled to 15 cm, else the bundled torus.
 # Prints poses, unanswered, manager RSS, warnings and detection-time percentiles; exit 1 on an unanswered
 # pose, RSS growth beyond the bound after warm-up, or an unexpected warning. Launch log: .build/soak.log.

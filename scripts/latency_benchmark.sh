@@ -1,6 +1,6 @@
 #!/bin/bash
-# Pose-to-contact latency of the detector nodelet, intra-process (issue 3, Performance): 1 kHz poses
-# for 60 s on mannequin-devil.off (scaled to 20 cm) with the markers subscribed in and out of process.
+# Pose-to-contact latency of the detector as clod_haptics.launch runs it (its defaults): 1 kHz poses from another process
+# for 60 s on mannequin-devil.off (scaled to 20 cm) with the markers subscribed out of process.
 #   scripts/latency_benchmark.sh [roslaunch args, e.g. duration:=60 mesh:=... scale:=...]
 # after sourcing the workspace's devel/setup.bash. Uses its own ROS master on a free port.
 # A benchmark: it prints figures (median, p99, unanswered) and never fails on them.

@@ -1,21 +1,26 @@
 #!/usr/bin/python3
-"""Soak of the detector nodelet (issue 6, 'The running system').
+"""Soak of the detector as users run it: the shipped launch/clod_haptics.launch with its defaults.
 
-Starts launch/soak.launch (sphere_builder, a nodelet manager `soak_manager` and the detector nodelet) on
-its own ROS master, then for --duration seconds (default 600):
+Starts launch/clod_haptics.launch (sphere_builder, the nodelet manager `clod_manager` and the detector
+nodelet, every queue size and policy at its default) on its own ROS master, then for --duration seconds
+(default 600):
   * streams stylus poses at 1 kHz (--rate) that slide over the surface and press into it (the pointer
     centre goes from 3 r outside to 2 r inside along the surface normal, about 1.4 Hz), each with a unique
     stamp so every contact is matched to its pose;
   * subscribes to ~markers (raw bytes, counted: the subscription alone makes the nodelet build them);
   * reconfigures clustering_distance every --reconfigure-period seconds, cycling through --distances,
-    and every fourth time also the pointer radius (--radii);
+    and every fourth time also the pointer radius (--radii): in this process (--reconfigure-with client)
+    or, as a user at a shell does, by starting `dynparam set` each time (--reconfigure-with dynparam: a
+    Python process started every period, each one competing with the pose path for the CPU);
   * samples the manager's RSS (/proc/<pid>/status) every 5 s, printing it at the start, every 30 s
     and at the end;
   * records every WARN/ERROR/FATAL published on /rosout (and ERROR/died lines of the launch log).
-At the end it prints poses sent, contacts received, unanswered poses, RSS start/end/max, warnings
-(expected and unexpected) and percentiles of the detection time the contacts carry.
+At the end it prints poses sent, contacts received, unanswered poses, the detector's loss counters (gaps in
+the pose stream, stale poses skipped) and the gaps in the answers' header.seq, RSS start/end/max, warnings
+(expected and unexpected), percentiles of the detection time the contacts carry and of the detector's own
+pose path (~status: roscpp's receipt of a pose to its answer published, queue wait included).
 
-Exit status 1 when a pose went unanswered, the RSS grew by more than --rss-bound-mib after the warm-up
+Exit status 1 when a pose went unanswered or was counted lost or skipped, the RSS grew by more than --rss-bound-mib after the warm-up
 (--warmup seconds, at least one full cycle of distances: every level has been built and cached once),
 an unexpected warning or error was logged, no level swap happened, or the launch died.
 
@@ -32,7 +37,7 @@ steady leak shows and a one-time step does not.
   scripts/soak.py [--duration 600] [--mesh FILE --scale S]     # after sourcing devel/setup.bash
   make soak SOAK_SECONDS=600
 
---attach runs against nodes already started (test/rostest/soak_short.test includes soak.launch).
+--attach runs against nodes already started (test/rostest/soak_short.test includes clod_haptics.launch).
 """
 import argparse
 import math
@@ -204,6 +209,9 @@ class Soak:
         self.in_contact = np.zeros(capacity, dtype=bool)
         self.duplicates = 0
         self.foreign = 0
+        self.last_answer_seq = None
+        self.answer_gaps = 0  # answers the detector numbered but this subscriber never got
+        self.dynparam_procs = []
         self.sent = 0
         self.marker_arrays = 0
         self.marker_bytes = 0
@@ -227,6 +235,10 @@ class Soak:
         return (stamp.secs - 1000) * 1000000 + stamp.nsecs // 1000
 
     def on_contact(self, msg):
+        seq = msg.header.seq
+        if self.last_answer_seq is not None and seq > self.last_answer_seq + 1:
+            self.answer_gaps += seq - self.last_answer_seq - 1
+        self.last_answer_seq = seq
         k = self.index(msg.header.stamp)
         if k < 0 or k >= len(self.recv_at) or math.isnan(self.sent_at[k]):
             self.foreign += 1
@@ -309,7 +321,39 @@ class Soak:
                 k += 1
         self.sent = k
 
+    def reap_dynparam(self, wait=False):
+        """Collects finished `dynparam set` processes; a non-zero exit is a failed reconfigure."""
+        still = []
+        for update, proc in self.dynparam_procs:
+            if wait:
+                try:
+                    proc.wait(timeout=60)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+            if proc.poll() is None:
+                still.append((update, proc))
+            elif proc.returncode == 0:
+                self.reconfigures += 1
+            else:
+                err = proc.stderr.read().decode(errors="replace").strip().splitlines()
+                self.reconfigure_failures.append("%s: dynparam exit %d %s" % (update, proc.returncode, err[-1:]))
+        self.dynparam_procs = still
+
     def reconfigurer(self, t0):
+        if self.args.reconfigure_with == "dynparam":
+            # A user at a shell: one `dynparam set` process started every period, not waited for (each one
+            # takes 1 to 3 s to start Python and connect; several overlap).
+            i = 0
+            while not self.stop.wait(max(0.0, t0 + (i + 1) * self.args.reconfigure_period - time.monotonic())):
+                i += 1
+                d = self.args.distances[i % len(self.args.distances)]
+                cmd = ["rosrun", "dynamic_reconfigure", "dynparam", "set", self.ns, "clustering_distance", repr(d)]
+                self.dynparam_procs.append(({"clustering_distance": d}, subprocess.Popen(
+                    cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)))
+                self.reap_dynparam()
+            self.reap_dynparam(wait=True)
+            return
         import dynamic_reconfigure.client
         client = dynamic_reconfigure.client.Client(self.ns, timeout=30)
         i = 0
@@ -402,6 +446,12 @@ class Soak:
         failures = []
         if unanswered:
             failures.append("%d of %d poses unanswered" % (unanswered, sent))
+        if s is not None and (s.poses_lost_upstream or s.poses_skipped_stale):
+            failures.append("the detector counted %d poses lost upstream and %d skipped as stale" % (
+                s.poses_lost_upstream, s.poses_skipped_stale))
+        if self.answer_gaps:
+            failures.append("%d answers lost between the detector and this subscriber (header.seq gaps)" %
+                            self.answer_gaps)
         if sent == 0:
             failures.append("no pose sent")
         if warm and growth_mib > a.rss_bound_mib:
@@ -441,9 +491,17 @@ class Soak:
                 (s.poses_received, s.contacts_published, s.dropped_non_finite, s.dropped_unknown_frame,
                  s.level_swaps - (status0.level_swaps if status0 else 0), s.clustering_distance, s.level_spheres,
                  s.level_source) if s else ("?",) * 8),
-            "reconfigures      %d (clustering_distance every %g s over %s, pointer_radius every 4th over %s), "
-            "%d failed" % (self.reconfigures, a.reconfigure_period, a.distances, a.radii,
-                           len(self.reconfigure_failures)),
+            "pose loss         policy %s, queues %s/%s: lost upstream %s, skipped stale %s, answers lost on the way "
+            "back %d" % (((s.pose_policy, s.pose_queue_size, s.publish_queue_size, s.poses_lost_upstream,
+                           s.poses_skipped_stale) if s else ("?",) * 5) + (self.answer_gaps,)),
+            "pose path us      p50 %s, p99 %s, p99.9 %s, max %s (in the detector: roscpp receipt to answer "
+            "published, every answered pose)" % ((s.pose_path_p50_us, s.pose_path_p99_us, s.pose_path_p999_us,
+                                                 s.pose_path_max_us) if s else ("?",) * 4),
+            "reconfigures      %d by %s (clustering_distance every %g s over %s%s), %d failed" % (
+                self.reconfigures, "a dynparam process each" if a.reconfigure_with == "dynparam" else "this process",
+                a.reconfigure_period, a.distances,
+                "" if a.reconfigure_with == "dynparam" else ", pointer_radius every 4th over %s" % (a.radii,),
+                len(self.reconfigure_failures)),
             "markers           %d arrays, %.1f MiB" % (self.marker_arrays, self.marker_bytes / 2.0 ** 20),
             "manager RSS       start %.1f MiB, after %.0f s warm-up %s MiB, end %.1f MiB, max %.1f MiB; "
             "growth after warm-up %.1f MiB (bound %.1f MiB), over the last %.0f s %.1f MiB" % (
@@ -465,7 +523,7 @@ class Soak:
         lines.append("RESULT: %s" % ("PASS" if not failures else "FAIL: " + "; ".join(failures)))
         return {
             "text": "\n".join(lines), "failures": failures, "sent": sent, "answered": n_answered,
-            "unanswered": unanswered, "rss": rss, "growth_mib": growth_mib, "late_growth_mib": late_mib, "detection_us": percentiles(det_us),
+            "unanswered": unanswered, "answer_gaps": self.answer_gaps, "status": s, "rss": rss, "growth_mib": growth_mib, "late_growth_mib": late_mib, "detection_us": percentiles(det_us),
             "expected": expected, "unexpected": unexpected, "reconfigures": self.reconfigures,
             "marker_arrays": self.marker_arrays,
         }
@@ -482,7 +540,10 @@ def parse_args(argv=None):
                    default=[0.003, 0.0, 0.001, 0.002, 0.005, 0.008], help="clustering distances cycled (m)")
     p.add_argument("--radii", type=lambda s: [float(x) for x in s.split(",")], default=[0.002, 0.0015, 0.003],
                    help="pointer radii cycled every fourth reconfigure (m)")
-    p.add_argument("--reconfigure-period", type=float, default=3.0, help="seconds between reconfigures")
+    p.add_argument("--reconfigure-period", type=float, default=1.0, help="seconds between reconfigures")
+    p.add_argument("--reconfigure-with", choices=["client", "dynparam"], default="dynparam",
+                   help="client: a dynamic_reconfigure client in this process; dynparam (default): start a "
+                        "`dynparam set` process every period, as a user at a shell does")
     p.add_argument("--warmup", type=float, default=None,
                    help="seconds before the RSS reference (default: max(60, a full distance cycle + 10) "
                         "or a third of short runs)")
@@ -490,9 +551,9 @@ def parse_args(argv=None):
     p.add_argument("--grace", type=float, default=5.0, help="seconds to wait for the last answers")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--no-markers", action="store_true", help="do not subscribe to ~markers")
-    p.add_argument("--attach", action="store_true", help="use nodes already running (soak.launch) and their master")
+    p.add_argument("--attach", action="store_true", help="use nodes already running (clod_haptics.launch) and their master")
     p.add_argument("--detector", default="/detector")
-    p.add_argument("--manager", default="/soak_manager")
+    p.add_argument("--manager", default="/clod_manager")
     p.add_argument("--pose-topic", default="/phantom/pose")
     p.add_argument("--frame-id", default="world")
     p.add_argument("--port", type=int, default=None, help="master port (default: a free one)")
@@ -522,7 +583,7 @@ def main():
     print("soak: %s for %.0f s at %g Hz, scale %g; master on port %d; launch log %s" % (
         args.mesh, args.duration, args.rate, args.scale, port, log_path), flush=True)
     log = open(log_path, "w")
-    launch = subprocess.Popen(["roslaunch", "-p", str(port), "clod_haptics", "soak.launch",
+    launch = subprocess.Popen(["roslaunch", "-p", str(port), "clod_haptics", "clod_haptics.launch",
                                "mesh:=" + os.path.abspath(resolve_mesh(args.mesh)), "scale:=%r" % args.scale,
                                "pointer_radius:=%r" % args.radii[0], "distance:=%r" % args.distances[0]],
                               stdout=log, stderr=subprocess.STDOUT, start_new_session=True)

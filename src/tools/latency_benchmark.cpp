@@ -1,13 +1,13 @@
-// Pose-to-contact latency of the detector nodelet, intra-process: this program loads the nodelet in
-// its own process (nodelet::Loader), streams stylus poses at a fixed rate (1 kHz by default) on a
-// coherent path near the mesh surface, subscribes to the markers like RViz would, and times each
-// contact against its pose with the steady clock. Reports median, p99, p99.9, max and unanswered
-// poses. A benchmark, not a test: it prints figures and never fails on them.
+// Pose-to-contact latency of the detector as users run it: launch/latency_benchmark.launch starts the
+// shipped clod_haptics.launch with its defaults (sphere_builder, the detector nodelet in its manager), and
+// this program, a separate process like any pose source, streams stylus poses at a fixed rate (1 kHz by
+// default) on a coherent path near the mesh surface, subscribes to the markers like RViz would, and times
+// each contact against its pose with the steady clock. Reports median, p90, p99, p99.9, max, unanswered and
+// lost poses, and the detector's own pose-path percentiles (~status: roscpp receipt to answer published).
+// A benchmark, not a test: it prints figures and never fails on them.
 //
-//   rosrun clod_haptics latency_benchmark _mesh:=<file> _scale:=0.005 _duration:=60 _rate:=1000
-// (see launch/latency_benchmark.launch, which also starts an out-of-process marker subscriber).
+//   scripts/latency_benchmark.sh [duration:=60 mesh:=... scale:=...]
 #include <geometry_msgs/PoseStamped.h>
-#include <nodelet/loader.h>
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <visualization_msgs/MarkerArray.h>
@@ -17,6 +17,7 @@
 #include <chrono>
 #include <cinttypes>
 #include <cstdio>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -75,15 +76,6 @@ int main(int argc, char** argv) {
   options.normalize = normalize;
   const clod_haptics::TriangleMesh mesh = clod_haptics::loadMesh(clod_haptics::resolveMeshPath(meshUri), options);
 
-  // Load the nodelet into this process (no manager services needed).
-  nodelet::Loader loader(false);
-  nodelet::M_string remappings;
-  nodelet::V_string nodeletArgv;
-  if (!loader.load(detectorName, "clod_haptics/Detector", remappings, nodeletArgv)) {
-    ROS_ERROR("latency_benchmark: could not load clod_haptics/Detector");
-    return 1;
-  }
-
   const std::size_t total = static_cast<std::size_t>(duration * rate);
   std::vector<std::int64_t> sentNs(total, 0), latencyNs(total, -1), queryNs(total, -1);
   std::vector<char> inContact(total, 0);
@@ -125,9 +117,14 @@ int main(int argc, char** argv) {
   // Wait for the first level (status latched) and the connections.
   ros::NodeHandle snh;
   std::atomic<std::uint32_t> levelSpheres{0};
+  std::mutex statusMutex;
+  clod_haptics::DetectorStatus lastStatus;
   auto statusSub = snh.subscribe<clod_haptics::DetectorStatus>(
-      detectorName + "/status", 1,
-      [&](const clod_haptics::DetectorStatusConstPtr& s) { levelSpheres = s->level_spheres; });
+      detectorName + "/status", 1, [&](const clod_haptics::DetectorStatusConstPtr& s) {
+        levelSpheres = s->level_spheres;
+        std::lock_guard<std::mutex> lock(statusMutex);
+        lastStatus = *s;
+      });
   const auto waitStart = std::chrono::steady_clock::now();
   while (ros::ok() && (levelSpheres == 0 || posePub.getNumSubscribers() == 0 || markerSub.getNumPublishers() == 0)) {
     if (std::chrono::steady_clock::now() - waitStart > std::chrono::seconds(120)) {
@@ -172,8 +169,13 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_until(next);
   }
   const double streamed = std::chrono::duration<double>(std::chrono::steady_clock::now() - streamStart).count();
-  std::this_thread::sleep_for(std::chrono::seconds(1));  // late answers still count; none expected
+  std::this_thread::sleep_for(std::chrono::seconds(2));  // late answers still count; a status after the last pose
   measuring = false;
+  clod_haptics::DetectorStatus status;
+  {
+    std::lock_guard<std::mutex> lock(statusMutex);
+    status = lastStatus;
+  }
   const std::uint64_t markerCount = markerArrays.load() - markersBefore;
 
   std::vector<double> lat, query;
@@ -187,7 +189,7 @@ int main(int argc, char** argv) {
     query.push_back(queryNs[i] * 1e-3);
     contacts += inContact[i] ? 1 : 0;
   }
-  std::printf("\n== latency_benchmark: detector nodelet, intra-process ==\n");
+  std::printf("\n== latency_benchmark: the detector nodelet of clod_haptics.launch, poses from another process ==\n");
   std::printf("mesh %s: %zu triangles, scale %g%s; level: %u spheres; pointer radius %g\n", mesh.name.c_str(),
               mesh.size(), scale, normalize ? " (normalised)" : "", levelSpheres.load(), radius);
   std::printf("poses sent %zu at %.0f Hz over %.1f s; answered %zu; unanswered %zu; in contact %zu (%.1f %%)\n", total,
@@ -198,13 +200,18 @@ int main(int argc, char** argv) {
               lat.empty() ? 0.0 : *std::max_element(lat.begin(), lat.end()));
   std::printf("core query alone (us):         median %.2f  p99 %.2f  max %.2f\n", percentile(query, 0.5),
               percentile(query, 0.99), query.empty() ? 0.0 : *std::max_element(query.begin(), query.end()));
+  std::printf("detector status: pose policy %s, queues %u/%u, received %" PRIu64 ", answered %" PRIu64
+              ", lost upstream %" PRIu64 ", skipped stale %" PRIu64 "\n",
+              status.pose_policy.c_str(), status.pose_queue_size, status.publish_queue_size, status.poses_received,
+              status.contacts_published, status.poses_lost_upstream, status.poses_skipped_stale);
+  std::printf("in-node pose path (us, receipt -> answer published, whole run): p50 %.0f  p99 %.0f  p99.9 %.0f  max %.0f\n",
+              status.pose_path_p50_us, status.pose_path_p99_us, status.pose_path_p999_us, status.pose_path_max_us);
   std::printf("targets: median < 50 us %s, p99 < 250 us %s, unanswered == 0 %s\n",
               percentile(lat, 0.5) < 50 ? "met" : "MISSED", percentile(lat, 0.99) < 250 ? "met" : "MISSED",
               unanswered == 0 ? "met" : "MISSED");
   std::fflush(stdout);
   spinner.stop();
   globalSpinner.stop();
-  loader.clear();
   ros::shutdown();
   return 0;
 }
