@@ -34,13 +34,19 @@ double msSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-// Background threads (level builds, markers) yield the CPU to the pose thread: on a 2-core machine a level
-// build or a mesh marker would otherwise take the core the pose thread needs. Raising one's own nice value
-// needs no privilege.
+// The level worker yields the CPU to the pose thread: on a 2-core machine a level build would otherwise take the
+// core the pose thread needs. Raising one's own nice value needs no privilege. Only a thread that shares no lock
+// with the pose thread may run lower: the display thread publishes, and roscpp holds one process-wide lock while
+// it serialises any message, so a preempted low-priority publisher would stall the pose thread's publish.
 void lowerThisThreadPriority(int nice) {
   thread_local bool done = false;
   if (done) return;
   done = true;
+  // The manager may run real-time (clod_haptics.launch): back to the default scheduler first, which needs no
+  // privilege either.
+  sched_param normal{};
+  normal.sched_priority = 0;
+  pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
   const auto tid = static_cast<id_t>(::syscall(SYS_gettid));
   if (::setpriority(PRIO_PROCESS, tid, nice) != 0) {
     ROS_DEBUG("detector: could not lower a background thread's priority: %s", std::strerror(errno));
@@ -69,7 +75,11 @@ HapticDetector::HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh
   statusPub_ = pnh_.advertise<DetectorStatus>("status", 1, true);
   // A new marker subscriber gets the mesh and spheres again.
   markerPub_ = displayPnh_.advertise<visualization_msgs::MarkerArray>(
-      "markers", 10, [this](const ros::SingleSubscriberPublisher&) { staticDirty_ = true; },
+      "markers", 10,
+      [this](const ros::SingleSubscriberPublisher&) {
+        meshDirty_ = true;
+        spheresDirty_ = true;
+      },
       ros::SubscriberStatusCallback());
   tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_, nh_);
 
@@ -166,8 +176,10 @@ void HapticDetector::poseLoop() {
     param.sched_priority = realtimePriority_;
     const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
     if (err != 0) {
-      ROS_WARN("detector: ~realtime_priority %d: the pose thread stays on the default scheduler (%s; allow it "
-               "with 'ulimit -r %d' or an rtprio limit in /etc/security/limits.conf)",
+      // Not a warning: most desktops allow no real-time priority, and the detector works without it (its tail
+      // latency then depends on what else runs; see the README).
+      ROS_INFO("detector: ~realtime_priority %d not granted (%s): the pose thread stays on the default "
+               "scheduler; allow it with 'ulimit -r %d' or an rtprio line in /etc/security/limits.conf",
                realtimePriority_, std::strerror(err), realtimePriority_);
     } else {
       ROS_INFO("detector: pose thread at SCHED_FIFO priority %d", realtimePriority_);
@@ -248,7 +260,13 @@ void HapticDetector::onPose(const ros::MessageEvent<const geometry_msgs::PoseSta
 
   const double radius = radius_.load(std::memory_order_relaxed);
   const auto mode = static_cast<DetectionMode>(mode_.load(std::memory_order_relaxed));
-  const std::shared_ptr<const Level> level = std::atomic_load(&level_);
+  // Inside: the worker will not free the level read below until this callback has returned.
+  poseEpoch_.fetch_add(1, std::memory_order_seq_cst);
+  struct Leave {
+    std::atomic<std::uint64_t>& epoch;
+    ~Leave() { epoch.fetch_add(1, std::memory_order_release); }
+  } leave{poseEpoch_};
+  const Level* level = poseLevel_.load(std::memory_order_seq_cst);
 
   ContactResult result;
   const auto start = std::chrono::steady_clock::now();
@@ -286,7 +304,10 @@ void HapticDetector::onPose(const ros::MessageEvent<const geometry_msgs::PoseSta
   if (!ros::Time::isSimTime()) posePath_.record((ros::Time::now() - event.getReceiptTime()).toNSec());
 
   if (!markersWanted_.load(std::memory_order_relaxed)) return;
-  std::lock_guard<std::mutex> lock(lastMutex_);
+  // For the markers only: if the display thread is copying it right now, this pose is not drawn rather than
+  // waiting for a thread of lower priority.
+  std::unique_lock<std::mutex> lock(lastMutex_, std::try_to_lock);
+  if (!lock.owns_lock()) return;
   last_.valid = true;
   last_.pointer = p;
   last_.radius = radius;
@@ -325,7 +346,8 @@ void HapticDetector::onReconfigure(DetectorConfig& config, std::uint32_t /*level
   showHit_ = config.show_hit_spheres;
   showContact_ = config.show_contact;
   showPointer_ = config.show_pointer;
-  staticDirty_ = true;
+  if (config.show_mesh != shownMesh_) meshDirty_ = true;
+  if (config.show_spheres != shownSpheresOn_) spheresDirty_ = true;
   requestLevel(config.clustering_distance);
 }
 
@@ -339,12 +361,19 @@ void HapticDetector::requestLevel(double distance) {
   workerCv_.notify_all();
 }
 
-void HapticDetector::retire(std::shared_ptr<const Level> old) {
-  // The pose thread holds a level for one callback (microseconds), the display thread for one marker frame:
-  // wait for them to let go so that the free (a level is megabytes of small arrays) happens here, never
-  // on the haptic path. If a holder keeps it longer, that holder frees it.
-  for (int i = 0; i < 1000 && old && old.use_count() > 1; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  old.reset();
+std::shared_ptr<const HapticDetector::Level> HapticDetector::currentLevel() {
+  std::lock_guard<std::mutex> lock(levelMutex_);
+  return level_;
+}
+
+void HapticDetector::waitUntilThePoseThreadLetsGo() {
+  // poseLevel_ was stored before this load (both sequentially consistent): a callback that starts after it
+  // reads the new level; one that was inside (odd epoch) may hold the old one until the epoch moves on.
+  const std::uint64_t epoch = poseEpoch_.load(std::memory_order_seq_cst);
+  if ((epoch & 1u) == 0u) return;
+  while (poseEpoch_.load(std::memory_order_acquire) == epoch && !poseStop_.load(std::memory_order_relaxed)) {
+    std::this_thread::sleep_for(std::chrono::microseconds(50));
+  }
 }
 
 void HapticDetector::levelWorker() {
@@ -358,18 +387,26 @@ void HapticDetector::levelWorker() {
       distance = pendingDistance_;
       pending_ = false;
     }
-    const auto current = std::atomic_load(&level_);
+    const auto current = currentLevel();
     if (current && current->distance == distance) continue;
     try {
-      auto level = makeLevel(distance);
-      auto old = std::atomic_exchange(&level_, std::shared_ptr<const Level>(level));
+      std::shared_ptr<const Level> level = makeLevel(distance);
+      std::shared_ptr<const Level> old;
+      {
+        std::lock_guard<std::mutex> lock(levelMutex_);
+        old = std::move(level_);
+        level_ = level;
+      }
+      poseLevel_.store(level.get(), std::memory_order_seq_cst);
+      waitUntilThePoseThreadLetsGo();
       swaps_.fetch_add(1, std::memory_order_relaxed);
-      staticDirty_ = true;
+      spheresDirty_ = true;
       ROS_INFO("detector: level d = %g with %u spheres in use (%s, %.1f ms)", level->distance, level->spheres,
                level->source.c_str(), level->readyMs);
-      publishStatus();
-      level.reset();
-      retire(std::move(old));
+      statusDirty_ = true;  // published by the display thread: a publish holds roscpp's process-wide lock
+      // The old level (megabytes of small arrays) is freed here, off the haptic path, unless the display
+      // thread still draws it (then there, when it lets go).
+      old.reset();
     } catch (const std::exception& e) {
       ROS_ERROR("detector: could not prepare level d = %g: %s; keeping the current level", distance, e.what());
     }
@@ -430,7 +467,6 @@ std::shared_ptr<const HapticDetector::Level> HapticDetector::makeLevel(double di
 // Display and status (display thread).
 
 void HapticDetector::onStatusTimer(const ros::SteadyTimerEvent&) {
-  lowerThisThreadPriority(5);
   // Loss is never silent: warn (at most every 5 s) whenever a counter grew.
   const std::uint64_t skipped = skippedStale_.load(), lost = lostUpstream_.load();
   if (lost > warnedLost_) {
@@ -473,7 +509,7 @@ void HapticDetector::publishStatus() {
   status->answered_without_level = bruteForce_.load();
   status->level_swaps = swaps_.load();
   status->requested_distance = requestedDistance_.load();
-  const auto level = std::atomic_load(&level_);
+  const auto level = currentLevel();
   status->clustering_distance = level ? level->distance : std::numeric_limits<double>::quiet_NaN();
   status->level_spheres = level ? level->spheres : 0;
   status->level_source = level ? level->source : "";
@@ -482,7 +518,7 @@ void HapticDetector::publishStatus() {
 }
 
 void HapticDetector::onDisplayTimer(const ros::SteadyTimerEvent&) {
-  lowerThisThreadPriority(5);
+  if (statusDirty_.exchange(false)) publishStatus();  // a new level: say so now, not at the next second
   const bool wanted = markerPub_.getNumSubscribers() > 0;
   markersWanted_.store(wanted, std::memory_order_relaxed);
   if (!wanted) return;
@@ -495,27 +531,30 @@ void HapticDetector::publishMarkers() {
     std::lock_guard<std::mutex> lock(lastMutex_);
     last = last_;
   }
-  const auto level = std::atomic_load(&level_);
+  const auto level = currentLevel();
   auto array = boost::make_shared<visualization_msgs::MarkerArray>();
   std_msgs::Header header;
   header.frame_id = meshFrame_;
   header.stamp = ros::Time(0);
 
-  const std::uint64_t levelId = level ? level->detector->id() : 0;
-  if (staticDirty_.exchange(false) || levelId != shownLevelId_) {
-    if (showMesh_) {
+  if (meshDirty_.exchange(false)) {
+    shownMesh_ = showMesh_;
+    if (shownMesh_) {
       array->markers.push_back(meshMarker(*mesh_, header, makeColor(0.75f, 0.75f, 0.78f, 1.0f)));
     } else {
       array->markers.push_back(deleteMarker(marker_ns::kMesh, 0, header));
     }
-    if (level && showSpheres_) {
-      appendSphereMarkers(*level->detector->spheres(), nullptr, marker_ns::kSpheres, header,
-                          makeColor(0.2f, 0.45f, 1.0f, 0.18f), shownSpheres_, *array);
-      shownSpheres_ = level->spheres;
+  }
+  const std::uint64_t levelId = level ? level->detector->id() : 0;
+  if (spheresDirty_.exchange(false) || levelId != shownLevelId_) {
+    shownSpheresOn_ = showSpheres_;
+    if (level && shownSpheresOn_) {
+      shownSpheres_ = appendSphereMarkers(*level->detector->spheres(), nullptr, marker_ns::kSpheres, header,
+                                          makeColor(0.2f, 0.45f, 1.0f, 0.18f), shownSpheres_, *array);
     } else {
       static const ClodSphereSet empty;
-      appendSphereMarkers(empty, nullptr, marker_ns::kSpheres, header, makeColor(0, 0, 0, 0), shownSpheres_, *array);
-      shownSpheres_ = 0;
+      shownSpheres_ =
+          appendSphereMarkers(empty, nullptr, marker_ns::kSpheres, header, makeColor(0, 0, 0, 0), shownSpheres_, *array);
     }
     shownLevelId_ = levelId;
   }
@@ -525,9 +564,8 @@ void HapticDetector::publishMarkers() {
     if (level && showHit_) level->detector->hitSpheres(last.pointer, last.radius, hitBuffer_);
     const ClodSphereSet* set = level ? level->detector->spheres().get() : nullptr;
     static const ClodSphereSet empty;
-    appendSphereMarkers(set ? *set : empty, &hitBuffer_, marker_ns::kHitSpheres, header,
-                        makeColor(1.0f, 0.55f, 0.0f, 0.55f), shownHit_, *array);
-    shownHit_ = set ? hitBuffer_.size() : 0;
+    shownHit_ = appendSphereMarkers(set ? *set : empty, &hitBuffer_, marker_ns::kHitSpheres, header,
+                                    makeColor(1.0f, 0.55f, 0.0f, 0.55f), shownHit_, *array);
 
     ContactResult shown = last.result;
     if (!showContact_) shown.contact = false;

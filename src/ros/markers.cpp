@@ -2,6 +2,11 @@
 
 #include "clod_haptics/ros/conversions.h"
 
+#include <algorithm>
+#include <cmath>
+#include <utility>
+#include <vector>
+
 namespace clod_haptics {
 
 namespace {
@@ -41,21 +46,38 @@ visualization_msgs::Marker meshMarker(const TriangleMesh& mesh, const std_msgs::
   return m;
 }
 
-void appendSphereMarkers(const ClodSphereSet& set, const std::vector<std::uint32_t>* indices, const char* ns,
-                         const std_msgs::Header& header, const std_msgs::ColorRGBA& color, std::size_t previousCount,
-                         visualization_msgs::MarkerArray& out) {
+std::size_t appendSphereMarkers(const ClodSphereSet& set, const std::vector<std::uint32_t>* indices, const char* ns,
+                                const std_msgs::Header& header, const std_msgs::ColorRGBA& color,
+                                std::size_t previousCount, visualization_msgs::MarkerArray& out) {
+  // (radius class, sphere) pairs, sorted by class: each run of one class becomes one list.
+  std::vector<std::pair<int, std::uint32_t>> byClass;
   const std::size_t n = indices ? indices->size() : set.size();
-  out.markers.reserve(out.markers.size() + std::max(n, previousCount));
+  byClass.reserve(n);
   for (std::size_t k = 0; k < n; ++k) {
     const std::size_t i = indices ? (*indices)[k] : k;
-    if (i >= set.size()) continue;
-    visualization_msgs::Marker m = baseMarker(ns, static_cast<int>(k), visualization_msgs::Marker::SPHERE, header);
-    m.pose.position = toPoint(set.centres[i]);
-    m.scale.x = m.scale.y = m.scale.z = 2.0 * set.radii[i];
-    m.color = color;
-    out.markers.push_back(std::move(m));
+    if (i >= set.size() || !std::isfinite(set.radii[i]) || !set.centres[i].allFinite()) continue;
+    const double r = std::max(set.radii[i], 1e-12);
+    byClass.emplace_back(static_cast<int>(std::ceil(kSphereClassesPerOctave * std::log2(r))),
+                         static_cast<std::uint32_t>(i));
   }
-  for (std::size_t k = n; k < previousCount; ++k) out.markers.push_back(deleteMarker(ns, static_cast<int>(k), header));
+  std::sort(byClass.begin(), byClass.end());
+  std::size_t written = 0;
+  for (std::size_t a = 0; a < byClass.size();) {
+    std::size_t b = a;
+    while (b < byClass.size() && byClass[b].first == byClass[a].first) ++b;
+    visualization_msgs::Marker m =
+        baseMarker(ns, static_cast<int>(written), visualization_msgs::Marker::SPHERE_LIST, header);
+    const double radius = std::exp2(static_cast<double>(byClass[a].first) / kSphereClassesPerOctave);
+    m.scale.x = m.scale.y = m.scale.z = 2.0 * radius;
+    m.color = color;
+    m.points.reserve(b - a);
+    for (std::size_t k = a; k < b; ++k) m.points.push_back(toPoint(set.centres[byClass[k].second]));
+    out.markers.push_back(std::move(m));
+    ++written;
+    a = b;
+  }
+  for (std::size_t k = written; k < previousCount; ++k) out.markers.push_back(deleteMarker(ns, static_cast<int>(k), header));
+  return written;
 }
 
 visualization_msgs::Marker pointerMarker(const Vec3& p, double radius, const std_msgs::Header& header,

@@ -32,6 +32,16 @@ void applyOffset(const Eigen::Isometry3d& offset, std::size_t first, visualizati
   for (std::size_t k = first; k < array.markers.size(); ++k) {
     auto& m = array.markers[k];
     if (m.action != visualization_msgs::Marker::ADD) continue;
+    if (m.type == visualization_msgs::Marker::SPHERE_LIST) {
+      // A list's points are in the object's frame: the marker's pose carries the offset, rotation included.
+      const Eigen::Quaterniond q(offset.linear());
+      m.pose.position = toPoint(offset.translation());
+      m.pose.orientation.x = q.x();
+      m.pose.orientation.y = q.y();
+      m.pose.orientation.z = q.z();
+      m.pose.orientation.w = q.w();
+      continue;
+    }
     m.pose.position = toPoint(offset * fromPoint(m.pose.position));
   }
 }
@@ -461,11 +471,10 @@ void SceneHapticDetector::publishMarkers() {
       const std::string ns = "spheres/" + o.config.name;
       static const ClodSphereSet empty;
       const std::size_t first = array->markers.size();
-      appendSphereMarkers(levels[i] ? *levels[i]->spheres() : empty, nullptr, ns.c_str(), header,
-                          makeColor(0.2f, 0.45f, 1.0f, 0.18f), shownSpheres_[i], *array);
+      shownSpheres_[i] = appendSphereMarkers(levels[i] ? *levels[i]->spheres() : empty, nullptr, ns.c_str(), header,
+                                             makeColor(0.2f, 0.45f, 1.0f, 0.18f), shownSpheres_[i], *array);
       applyOffset(o.config.offset, first, *array);
       for (std::size_t k = first; k < array->markers.size(); ++k) array->markers[k].frame_locked = true;
-      shownSpheres_[i] = levels[i] ? levels[i]->spheres()->size() : 0;
       shownLevels_[i] = levels[i];
     }
   }
@@ -496,10 +505,9 @@ void SceneHapticDetector::publishMarkers() {
         header.frame_id = o.config.frameId;
         const std::string ns = "hit_spheres/" + o.config.name;
         const std::size_t first = array->markers.size();
-        appendSphereMarkers(*levels[i]->spheres(), &hitBuffer_, ns.c_str(), header,
-                            makeColor(1.0f, 0.55f, 0.0f, 0.55f), shownHit_[i], *array);
+        shownHit_[i] = appendSphereMarkers(*levels[i]->spheres(), &hitBuffer_, ns.c_str(), header,
+                                           makeColor(1.0f, 0.55f, 0.0f, 0.55f), shownHit_[i], *array);
         applyOffset(o.config.offset, first, *array);
-        shownHit_[i] = hitBuffer_.size();
       }
       // Contact point and normal per object, in the scene frame; deleted once when the contact ends.
       const SceneContact* contact = nullptr;

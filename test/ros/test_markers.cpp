@@ -1,8 +1,13 @@
 // Marker conversions (no roscore).
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <map>
+#include <random>
 #include <set>
 #include <string>
+#include <tuple>
+#include <vector>
 
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/mesh_loader.h"
@@ -36,34 +41,76 @@ TEST(Markers, MeshIsATriangleListOfEveryCorner) {
   EXPECT_EQ(m.pose.orientation.w, 1.0);
 }
 
-TEST(Markers, SpheresHaveTheirDiameterAndShrinkingListsDeleteTheRest) {
+// Every listed sphere is drawn exactly once, at its centre, never smaller than it is and at most one radius class
+// (2^(1/8)) larger; fewer markers than before delete the rest.
+TEST(Markers, SpheresAreListedByRadiusClassNeverDrawnSmallerAndShrinkingListsDeleteTheRest) {
   ClodSphereSet set;
-  set.centres = {Vec3(0, 0, 0), Vec3(1, 2, 3), Vec3(4, 5, 6)};
-  set.radii = {0.5, 0.25, 1.0};
-  set.offsets = {0, 0, 0, 0};
-  visualization_msgs::MarkerArray all;
-  appendSphereMarkers(set, nullptr, marker_ns::kSpheres, header(), makeColor(0, 0, 1, 0.2f), 0, all);
-  ASSERT_EQ(all.markers.size(), 3u);
-  EXPECT_EQ(all.markers[1].type, Marker::SPHERE);
-  EXPECT_EQ(all.markers[1].pose.position.y, 2.0);
-  EXPECT_EQ(all.markers[1].scale.x, 0.5);
-  EXPECT_EQ(all.markers[2].scale.z, 2.0);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> coord(-1.0, 1.0), logRadius(-12.0, 1.0);
+  for (int i = 0; i < 500; ++i) {
+    set.centres.emplace_back(coord(rng), coord(rng), coord(rng));
+    set.radii.push_back(std::exp2(logRadius(rng)));
+  }
+  set.radii[7] = 0.25;  // exactly a class bound: drawn at 0.25, not one class up
+  set.offsets.assign(set.radii.size() + 1, 0);
+  auto check = [&](const visualization_msgs::MarkerArray& array, const std::vector<std::uint32_t>& listed,
+                   const char* ns) {
+    std::multiset<std::tuple<double, double, double>> seen;
+    std::map<std::tuple<double, double, double>, double> drawn;
+    for (const auto& m : array.markers) {
+      if (m.action != Marker::ADD) continue;
+      EXPECT_EQ(m.type, Marker::SPHERE_LIST);
+      EXPECT_EQ(m.ns, ns);
+      EXPECT_EQ(m.scale.x, m.scale.y);
+      EXPECT_EQ(m.scale.x, m.scale.z);
+      for (const auto& p : m.points) {
+        seen.insert({p.x, p.y, p.z});
+        drawn[{p.x, p.y, p.z}] = m.scale.x / 2.0;
+      }
+    }
+    ASSERT_EQ(seen.size(), listed.size());
+    for (std::uint32_t i : listed) {
+      const auto key = std::make_tuple(set.centres[i].x(), set.centres[i].y(), set.centres[i].z());
+      ASSERT_EQ(seen.count(key), 1u) << "sphere " << i;
+      EXPECT_GE(drawn[key], set.radii[i]) << "sphere " << i << " drawn smaller than it is";
+      EXPECT_LE(drawn[key], set.radii[i] * std::exp2(1.0 / kSphereClassesPerOctave) * (1.0 + 1e-12)) << "sphere " << i;
+    }
+  };
+  std::vector<std::uint32_t> all(set.size());
+  for (std::uint32_t i = 0; i < all.size(); ++i) all[i] = i;
+  visualization_msgs::MarkerArray full;
+  const std::size_t classes = appendSphereMarkers(set, nullptr, marker_ns::kSpheres, header(), makeColor(0, 0, 1, 0.2f), 0, full);
+  EXPECT_EQ(classes, full.markers.size());
+  EXPECT_LE(classes, 13u * kSphereClassesPerOctave + 1u);  // radii span 13 octaves
+  EXPECT_GT(classes, 50u);
+  check(full, all, marker_ns::kSpheres);
   std::set<int> ids;
-  for (const auto& m : all.markers) ids.insert(m.id);
-  EXPECT_EQ(ids.size(), 3u);
+  for (const auto& m : full.markers) ids.insert(m.id);
+  EXPECT_EQ(ids.size(), classes);
+  EXPECT_EQ(*ids.rbegin(), static_cast<int>(classes) - 1);
 
-  // Highlight sphere 2 only, after 3 were shown: one ADD (id 0, sphere 2's geometry) and two DELETEs.
-  const std::vector<std::uint32_t> hit{2};
+  // Highlight two spheres of different classes after `classes` lists were shown: two ADDs, then DELETEs for the rest.
+  const std::vector<std::uint32_t> hit{7, 3};
   visualization_msgs::MarkerArray some;
-  appendSphereMarkers(set, &hit, marker_ns::kHitSpheres, header(), makeColor(1, 0.5f, 0, 0.5f), 3, some);
-  ASSERT_EQ(some.markers.size(), 3u);
-  EXPECT_EQ(some.markers[0].action, Marker::ADD);
-  EXPECT_EQ(some.markers[0].ns, marker_ns::kHitSpheres);
-  EXPECT_EQ(some.markers[0].pose.position.x, 4.0);
-  EXPECT_EQ(some.markers[1].action, Marker::DELETE);
-  EXPECT_EQ(some.markers[1].id, 1);
-  EXPECT_EQ(some.markers[2].action, Marker::DELETE);
-  EXPECT_EQ(some.markers[2].id, 2);
+  const std::size_t k = appendSphereMarkers(set, &hit, marker_ns::kHitSpheres, header(), makeColor(1, 0.5f, 0, 0.5f),
+                                            classes, some);
+  const std::set<double> hitClasses{std::ceil(8 * std::log2(set.radii[7])), std::ceil(8 * std::log2(set.radii[3]))};
+  ASSERT_EQ(k, hitClasses.size());
+  ASSERT_EQ(some.markers.size(), classes);
+  check(some, hit, marker_ns::kHitSpheres);
+  for (std::size_t m = k; m < classes; ++m) {
+    EXPECT_EQ(some.markers[m].action, Marker::DELETE);
+    EXPECT_EQ(some.markers[m].id, static_cast<int>(m));
+  }
+  // A radius on a class bound stays in its class: sphere 7 (0.25) is drawn with diameter 0.5 exactly.
+  bool found = false;
+  for (const auto& m : some.markers)
+    for (const auto& p : m.points)
+      if (p.x == set.centres[7].x() && p.y == set.centres[7].y() && p.z == set.centres[7].z()) {
+        found = true;
+        EXPECT_DOUBLE_EQ(m.scale.x, 0.5);
+      }
+  EXPECT_TRUE(found);
 }
 
 TEST(Markers, ContactShowsPointAndNormalOrClearsThem) {

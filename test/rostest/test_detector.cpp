@@ -430,6 +430,12 @@ class MarkerScene {
     std::lock_guard<std::mutex> lock(mutex_);
     return arrays_;
   }
+  /** Points of the list markers in namespace ns: the spheres drawn there. */
+  std::size_t points(const std::string& ns) {
+    std::size_t n = 0;
+    for (const auto& m : markers()) n += m.first.first == ns ? m.second.points.size() : 0;
+    return n;
+  }
 
  private:
   void onArray(const visualization_msgs::MarkerArrayConstPtr& array) {
@@ -482,8 +488,8 @@ TEST(Detector, MarkersShowTheMeshTheLevelTheHitSpheresAndTheContact) {
   auto markers = scene.markers();
   ASSERT_TRUE(markers.count(key("mesh")));
   EXPECT_EQ(markers[key("mesh")].points.size(), 3 * dc.mesh().size());
-  EXPECT_EQ(scene.count("spheres"), dc.status().level_spheres);
-  EXPECT_GE(scene.count("hit_spheres"), 1u);
+  EXPECT_EQ(scene.points("spheres"), dc.status().level_spheres);
+  EXPECT_GE(scene.points("hit_spheres"), 1u);
   ASSERT_TRUE(markers.count(key("contact_point")));
   ASSERT_TRUE(markers.count(key("contact_normal")));
   ASSERT_TRUE(markers.count(key("pointer")));

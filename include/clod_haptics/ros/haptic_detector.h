@@ -82,7 +82,8 @@ class HapticDetector {
   void poseLoop();
   void onPose(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event);
   void countSequence(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event);
-  void retire(std::shared_ptr<const Level> old);
+  std::shared_ptr<const Level> currentLevel();
+  void waitUntilThePoseThreadLetsGo();
   void onReconfigure(DetectorConfig& config, std::uint32_t level);
   void requestLevel(double distance);
   void levelWorker();
@@ -131,7 +132,14 @@ class HapticDetector {
   std::atomic<int> mode_{static_cast<int>(DetectionMode::Exact)};
   std::atomic<bool> showMesh_{true}, showSpheres_{true}, showHit_{true}, showContact_{true}, showPointer_{true};
 
-  // The current level: read with std::atomic_load, replaced with std::atomic_store.
+  // The current level. The pose thread reads a raw pointer: no lock and no reference count, nothing it could
+  // wait for behind a preempted background thread. The worker owns the level (level_) and lets a replaced one
+  // go only once the pose thread has left every callback that may still use it: poseEpoch_ is odd while a
+  // callback runs (a single reader's read-copy-update).
+  std::atomic<const Level*> poseLevel_{nullptr};
+  std::atomic<std::uint64_t> poseEpoch_{0};
+  // The same level for the worker, the display thread and the status, under a mutex the pose thread never takes.
+  std::mutex levelMutex_;
   std::shared_ptr<const Level> level_;
   // Temporal coherence of the pose stream; used only by onPose, which one thread runs at a time
   // (ros::spin in the node, the nodelet's single-threaded handle). A new level ignores the old entry.
@@ -158,14 +166,19 @@ class HapticDetector {
   std::uint64_t statusSequence_ = 0;  // display thread and worker, under statusMutex_
   std::mutex statusMutex_;
   std::uint64_t warnedSkipped_ = 0, warnedLost_ = 0;  // display thread
-  std::atomic<bool> markersWanted_{false};  // someone subscribes to ~markers: keep the last query for them
+  std::atomic<bool> markersWanted_{false};
+  std::atomic<bool> statusDirty_{false};  // the worker swapped a level: the display thread publishes the status  // someone subscribes to ~markers: keep the last query for them
 
   // Last query, for markers.
   std::mutex lastMutex_;
   LastQuery last_;
 
-  // Display state (display thread only, except staticDirty_).
-  std::atomic<bool> staticDirty_{true};
+  // Display state (display thread only, except the dirty flags). The mesh (megabytes for a large model) is sent
+  // when a subscriber connects or show_mesh changes, the level's spheres when the level or show_spheres changes.
+  std::atomic<bool> meshDirty_{true};
+  std::atomic<bool> spheresDirty_{true};
+  bool shownMesh_ = false;
+  bool shownSpheresOn_ = false;
   std::uint64_t shownLevelId_ = 0;  // ClodDetector::id() of the level drawn last (an id is never reused)
   std::size_t shownSpheres_ = 0;
   std::size_t shownHit_ = 0;

@@ -32,14 +32,21 @@ std_msgs::ColorRGBA makeColor(float r, float g, float b, float a);
 visualization_msgs::Marker meshMarker(const TriangleMesh& mesh, const std_msgs::Header& header,
                                       const std_msgs::ColorRGBA& color);
 
+/** \brief Radius classes per doubling of the radius in appendSphereMarkers: a sphere is drawn at most 2^(1/8) larger. */
+constexpr int kSphereClassesPerOctave = 8;
+
 /**
- * \brief One SPHERE marker per listed sphere (ids 0..n-1 in namespace ns), diameter 2 * radius.
- * When previousCount exceeds the list, DELETE markers for ids n..previousCount-1 follow, so a
- * shrinking list leaves nothing stale in RViz. indices == nullptr means every sphere of the set.
+ * \brief The listed spheres (indices == nullptr: every sphere of the set) as SPHERE_LIST markers in namespace ns,
+ * one per radius class, ids 0..k-1; returns k. A class holds the radii in (2^((c-1)/8), 2^(c/8)] metres and is
+ * drawn at its upper bound: never smaller than a sphere, at most 9% larger. When previousCount exceeds k,
+ * DELETE markers for ids k..previousCount-1 follow, so fewer classes leave nothing stale in RViz; pass the
+ * returned k as the next previousCount. One SPHERE marker per sphere made a 50,000-sphere level about 15 MB,
+ * which roscpp serialises under its process-wide publish lock while the detector's pose thread waits for it;
+ * a list is its centres (24 bytes a sphere), copied at once.
  */
-void appendSphereMarkers(const ClodSphereSet& set, const std::vector<std::uint32_t>* indices, const char* ns,
-                         const std_msgs::Header& header, const std_msgs::ColorRGBA& color, std::size_t previousCount,
-                         visualization_msgs::MarkerArray& out);
+std::size_t appendSphereMarkers(const ClodSphereSet& set, const std::vector<std::uint32_t>* indices, const char* ns,
+                                const std_msgs::Header& header, const std_msgs::ColorRGBA& color,
+                                std::size_t previousCount, visualization_msgs::MarkerArray& out);
 
 /** \brief The pointer as a SPHERE marker of diameter 2 * radius at p. */
 visualization_msgs::Marker pointerMarker(const Vec3& p, double radius, const std_msgs::Header& header,
