@@ -83,6 +83,7 @@ SceneHapticDetector::SceneHapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh
   contacts_.resize(n);
   caches_.resize(n);
   ready_.resize(n);
+  retired_.reserve(2 * n);
   wanted_ = std::make_unique<std::atomic<bool>[]>(n);
   for (std::size_t i = 0; i < n; ++i) wanted_[i] = false;
   shownLevels_.resize(n);
@@ -256,7 +257,21 @@ void SceneHapticDetector::swapInReadyLevels() {
   if (!readyPending_.exchange(false)) return;
   std::lock_guard<std::mutex> lock(readyMutex_);
   for (std::uint32_t i = 0; i < ready_.size(); ++i) {
-    if (ready_[i] && scene_.detector(i) != ready_[i]) scene_.setDetector(i, ready_[i]);
+    if (ready_[i] && scene_.detector(i) != ready_[i]) {
+      std::shared_ptr<const ClodDetector> old = scene_.detector(i);
+      scene_.setDetector(i, ready_[i]);
+      if (old && retired_.size() < retired_.capacity()) retired_.push_back(std::move(old));
+    }
+  }
+}
+
+void SceneHapticDetector::freeRetiredLevels() {
+  std::vector<std::shared_ptr<const ClodDetector>> drop;
+  {
+    std::lock_guard<std::mutex> lock(readyMutex_);
+    if (retired_.empty()) return;
+    drop.reserve(retired_.capacity());
+    drop.swap(retired_);  // retired_ keeps drop's capacity: the pose thread's push_back never allocates
   }
 }
 
@@ -429,6 +444,7 @@ void SceneHapticDetector::onPose(const geometry_msgs::PoseStampedConstPtr& msg) 
 // Display (its own thread): only while subscribed, only what changed.
 
 void SceneHapticDetector::onDisplayTimer(const ros::SteadyTimerEvent&) {
+  freeRetiredLevels();
   if (markerPub_.getNumSubscribers() == 0) return;
   publishMarkers();
 }

@@ -80,6 +80,7 @@ class SceneHapticDetector {
   void onPose(const geometry_msgs::PoseStampedConstPtr& msg);
   bool updatePoses(const ros::Time& stamp);
   void swapInReadyLevels();
+  void freeRetiredLevels();
   void levelWorker();
   void onDisplayTimer(const ros::SteadyTimerEvent& event);
   void publishMarkers();
@@ -120,6 +121,9 @@ class SceneHapticDetector {
   std::atomic<bool> stop_{false};
   std::mutex readyMutex_;
   std::vector<std::shared_ptr<const ClodDetector>> ready_;  // guarded by readyMutex_
+  // Levels the pose thread swapped out, freed by the display thread (a level is megabytes of small arrays: its
+  // free never runs on the haptic path). Guarded by readyMutex_; capacity for every object, so no allocation.
+  std::vector<std::shared_ptr<const ClodDetector>> retired_;
   std::atomic<bool> readyPending_{false};
   std::atomic<std::uint32_t> levelsReady_{0};
   // Per object, set by the pose thread: the pointer is near and the final level is not in place yet,
