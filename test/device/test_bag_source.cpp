@@ -15,6 +15,7 @@
 
 #include "clod_haptics/device/bag_source.h"
 #include "clod_haptics/test_config.h"
+#include "../scoped_pwd.h"
 
 using namespace clod_haptics::device;
 using Eigen::Vector3d;
@@ -80,24 +81,7 @@ std::string errorOf(const std::string& path, const BagReadOptions& options = {})
   return "";
 }
 
-/** Sets $PWD (the directory roslaunch was started from) for one test and puts the old value back. */
-class ScopedPwd {
- public:
-  explicit ScopedPwd(const std::string& value) {
-    if (const char* old = std::getenv("PWD")) old_ = old;
-    setenv("PWD", value.c_str(), 1);
-  }
-  ~ScopedPwd() {
-    if (old_) {
-      setenv("PWD", old_->c_str(), 1);
-    } else {
-      unsetenv("PWD");
-    }
-  }
-
- private:
-  std::optional<std::string> old_;
-};
+using clod_test::ScopedPwd;
 
 }  // namespace
 

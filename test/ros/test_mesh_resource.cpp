@@ -11,6 +11,7 @@
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/user_path.h"
 #include "clod_haptics/ros/mesh_resource.h"
+#include "../scoped_pwd.h"
 
 namespace clod_haptics {
 namespace {
@@ -42,24 +43,7 @@ class UserPathTree : public ::testing::Test {
   fs::path root_;
 };
 
-/** Sets $PWD for one test and puts the old value back. */
-class ScopedPwd {
- public:
-  explicit ScopedPwd(const std::string& value) {
-    if (const char* old = std::getenv("PWD")) old_ = old;
-    setenv("PWD", value.c_str(), 1);
-  }
-  ~ScopedPwd() {
-    if (old_) {
-      setenv("PWD", old_->c_str(), 1);
-    } else {
-      unsetenv("PWD");
-    }
-  }
-
- private:
-  std::optional<std::string> old_;
-};
+using clod_test::ScopedPwd;
 
 TEST(MeshResource, AbsolutePathsAndFileUrisPassThrough) {
   EXPECT_EQ(resolveMeshPath("/tmp/a.obj"), "/tmp/a.obj");
