@@ -185,8 +185,19 @@ void HapticDetector::poseLoop() {
       ROS_INFO("detector: pose thread at SCHED_FIFO priority %d", realtimePriority_);
     }
   }
-  // One callback at a time: while a pose is answered, poseQueue_ holds exactly the poses that arrived since.
-  while (!poseStop_.load(std::memory_order_relaxed)) poseQueue_.callOne(ros::WallDuration(0.05));
+  while (!poseStop_.load(std::memory_order_relaxed)) {
+    if (posePolicy_ == PosePolicy::All) {
+      poseQueue_.callOne(ros::WallDuration(0.05));  // every pose, in order
+      continue;
+    }
+    // Latest: take every pose that arrived while the last one was answered (onPose keeps the newest, counting the
+    // others as skipped), then answer that one.
+    poseQueue_.callAvailable(ros::WallDuration(0.05));
+    if (!newestValid_) continue;
+    newestValid_ = false;
+    answer(newestPose_);
+    newestPose_ = ros::MessageEvent<const geometry_msgs::PoseStamped>();
+  }
 }
 
 void HapticDetector::countSequence(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event) {
@@ -212,14 +223,20 @@ void HapticDetector::countSequence(const ros::MessageEvent<const geometry_msgs::
 }
 
 void HapticDetector::onPose(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event) {
-  const geometry_msgs::PoseStampedConstPtr& msg = event.getConstMessage();
   received_.fetch_add(1, std::memory_order_relaxed);
   countSequence(event);
-  if (posePolicy_ == PosePolicy::Latest && !poseQueue_.isEmpty()) {
-    // A newer pose is already waiting: its answer is the one the device can use.
-    skippedStale_.fetch_add(1, std::memory_order_relaxed);
+  if (posePolicy_ == PosePolicy::All) {
+    answer(event);
     return;
   }
+  // Latest: poseLoop answers the newest pose of each batch; one it replaces here is never answered.
+  if (newestValid_) skippedStale_.fetch_add(1, std::memory_order_relaxed);
+  newestPose_ = event;
+  newestValid_ = true;
+}
+
+void HapticDetector::answer(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event) {
+  const geometry_msgs::PoseStampedConstPtr& msg = event.getConstMessage();
   if (!isFinite(msg->pose)) {
     droppedNonFinite_.fetch_add(1, std::memory_order_relaxed);
     ROS_WARN_THROTTLE(1.0, "detector: dropped a pose with a NaN or Inf component (%lu so far)",

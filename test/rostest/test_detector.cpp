@@ -324,6 +324,54 @@ TEST(Detector, TwoReconfiguresWithoutAPoseBetweenThenEveryAnswerMatchesBruteForc
       << "no status heartbeat after the swaps";
 }
 
+// A burst of poses faster than the detector answers them: every pose is answered or, under pose_policy latest,
+// counted as skipped; none disappears. Under latest the newest pose of the burst is always answered.
+TEST(Detector, ABurstOfPosesIsAnsweredOrCountedNeverLostSilently) {
+  DetectorClient& dc = client();
+  ASSERT_TRUE(dc.waitReady());
+  // A status from after the previous test's poses, as the baseline.
+  const std::uint64_t seq0 = dc.status().sequence;
+  ASSERT_TRUE(dc.waitStatus([&](const DetectorStatus& st) { return st.sequence > seq0; }, 5.0));
+  const DetectorStatus before = dc.status();
+  const auto points = dc.probes(200, 50, 77);
+  const std::size_t n = 800;  // under the test publisher's queue of 1000: the burst leaves this process whole
+  std::vector<std::pair<ros::Time, Vec3>> sent;
+  for (std::size_t k = 0; k < n; ++k) {
+    const Vec3& pMesh = points[k % points.size()];
+    sent.emplace_back(dc.publish(dc.meshToPose() * pMesh), pMesh);  // no pause: a backlog forms
+  }
+  ASSERT_TRUE(dc.waitStatus(
+      [&](const DetectorStatus& st) { return st.poses_received >= before.poses_received + n; }, 30.0))
+      << "the detector did not receive the burst";
+  const std::uint64_t seq1 = dc.status().sequence;
+  ASSERT_TRUE(dc.waitStatus([&](const DetectorStatus& st) { return st.sequence > seq1; }, 5.0));
+  const DetectorStatus after = dc.status();
+  const std::uint64_t received = after.poses_received - before.poses_received;
+  const std::uint64_t answered = after.contacts_published - before.contacts_published;
+  const std::uint64_t skipped = after.poses_skipped_stale - before.poses_skipped_stale;
+  EXPECT_EQ(received, n);
+  EXPECT_EQ(answered + skipped, received) << "answered " << answered << ", skipped " << skipped;
+  std::size_t heard = 0;
+  Contact c;
+  geometry_msgs::WrenchStamped f;
+  for (const auto& s : sent) {
+    if (!dc.answered(s.first)) continue;
+    ASSERT_TRUE(dc.waitAnswer(s.first, c, f, 1.0));
+    dc.expectMatchesReference(s.second, c, f);
+    ++heard;
+  }
+  EXPECT_EQ(heard, answered);
+  EXPECT_TRUE(dc.answered(sent.back().first)) << "the newest pose of the burst was not answered";
+  if (after.pose_policy == "all") {
+    EXPECT_EQ(skipped, 0u);
+    EXPECT_EQ(answered, n);
+  } else {
+    ASSERT_EQ(after.pose_policy, "latest");
+    std::printf("pose_policy latest: %lu of %zu poses of the burst skipped as stale\n",
+                static_cast<unsigned long>(skipped), n);
+  }
+}
+
 // The status is a heartbeat a watchdog can use, and says how poses are handled and what was lost.
 TEST(Detector, StatusIsAHeartbeatWithLossCountersAndThePosePath) {
   DetectorClient& dc = client();

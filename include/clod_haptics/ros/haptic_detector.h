@@ -81,6 +81,7 @@ class HapticDetector {
   void readParameters();
   void poseLoop();
   void onPose(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event);
+  void answer(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event);
   void countSequence(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event);
   std::shared_ptr<const Level> currentLevel();
   void waitUntilThePoseThreadLetsGo();
@@ -99,6 +100,8 @@ class HapticDetector {
   ros::CallbackQueue poseQueue_;  // the pose subscription alone: its emptiness means no newer pose waits
   ros::NodeHandle poseNh_;
   std::thread poseThread_;
+  ros::MessageEvent<const geometry_msgs::PoseStamped> newestPose_;  // pose thread, pose_policy latest: the newest pose
+  bool newestValid_ = false;
   std::atomic<bool> poseStop_{false};
   ros::CallbackQueue displayQueue_;
   ros::NodeHandle displayPnh_;
