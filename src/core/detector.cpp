@@ -5,7 +5,9 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <string>
 
+#include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
 
 namespace clod_haptics {
@@ -67,6 +69,9 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
     : mesh_(std::move(mesh)), spheres_(std::move(spheres)), fastLevel_(fastLevel), id_(nextDetectorId()) {
   const TriangleMesh& m = *mesh_;
   const ClodSphereSet& s = *spheres_;
+  // A level built for another mesh would send the lists past the mesh's arrays: refuse it, typed.
+  const std::string misfit = fitProblem(m, s);
+  if (!misfit.empty()) throw SphereSetMismatch("ClodDetector: the sphere set does not fit mesh '" + m.name + "': " + misfit);
   const Eigen::AlignedBox3d bounds = m.bounds();
   // Padding relative to the coordinates' magnitude: covers rounding in every bound test.
   const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());

@@ -214,29 +214,8 @@ ClodSphereSet readSphereSetBinary(const std::string& path, std::uint64_t meshHas
   body.read(set.meshName.data(), nameLength, "the mesh name");
 
   // The set must fit the mesh: the detector relies on coverage to miss no contact.
-  if (set.offsets.front() != 0 || set.offsets.back() != m) r.fail("offsets do not span the triangle list");
-  const double tolerance = 1e-12 * mesh.diagonal();
-  std::vector<char> covered(mesh.size(), 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (set.offsets[i] > set.offsets[i + 1]) r.fail("offsets decrease at sphere " + std::to_string(i));
-    const Vec3& c = set.centres[i];
-    const double radius = set.radii[i];
-    if (!c.allFinite() || !std::isfinite(radius) || radius < 0.0) r.fail("sphere " + std::to_string(i) + " is not finite");
-    const double reach = radius * (1.0 + 1e-9) + tolerance;
-    for (std::uint32_t k = set.offsets[i]; k < set.offsets[i + 1]; ++k) {
-      const std::uint32_t t = set.triangles[k];
-      if (t >= mesh.size()) r.fail("triangle index " + std::to_string(t) + " out of range");
-      for (int v = 0; v < 3; ++v) {
-        if ((mesh.vertex(t, v) - c).norm() > reach) {
-          r.fail("sphere " + std::to_string(i) + " does not reach triangle " + std::to_string(t));
-        }
-      }
-      covered[t] = 1;
-    }
-  }
-  for (std::size_t t = 0; t < covered.size(); ++t) {
-    if (!covered[t]) r.fail("triangle " + std::to_string(t) + " is in no sphere");
-  }
+  const std::string misfit = fitProblem(mesh, set);
+  if (!misfit.empty()) r.fail(misfit);
   return set;
 }
 

@@ -211,4 +211,39 @@ ClodSphereSet ClodBuilder::build(double d) const {
   return set;
 }
 
+std::string fitProblem(const TriangleMesh& mesh, const ClodSphereSet& set, double relativeTolerance) {
+  const std::size_t n = set.centres.size();
+  if (set.radii.size() != n || set.offsets.size() != n + 1) return "inconsistent array sizes";
+  if (set.offsets.front() != 0 || set.offsets.back() != set.triangles.size()) {
+    return "offsets do not span the triangle list";
+  }
+  const double tolerance = relativeTolerance * std::max(mesh.diagonal(), 1e-300);
+  std::vector<char> covered(mesh.size(), 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (set.offsets[i] > set.offsets[i + 1]) return "offsets decrease at sphere " + std::to_string(i);
+    const Vec3& c = set.centres[i];
+    const double radius = set.radii[i];
+    if (!c.allFinite() || !std::isfinite(radius) || radius < 0.0) return "sphere " + std::to_string(i) + " is not finite";
+    const double reach = radius * (1.0 + 1e-9) + tolerance;
+    for (std::uint32_t k = set.offsets[i]; k < set.offsets[i + 1]; ++k) {
+      const std::uint32_t t = set.triangles[k];
+      if (t >= mesh.size()) {
+        return "sphere " + std::to_string(i) + " lists triangle " + std::to_string(t) + " but the mesh has " +
+               std::to_string(mesh.size());
+      }
+      for (int v = 0; v < 3; ++v) {
+        if (!((mesh.vertex(t, v) - c).norm() <= reach)) {
+          return "triangle " + std::to_string(t) + " sticks out of sphere " + std::to_string(i) +
+                 " (is it the same mesh and scale?)";
+        }
+      }
+      covered[t] = 1;
+    }
+  }
+  for (std::size_t t = 0; t < covered.size(); ++t) {
+    if (!covered[t]) return "triangle " + std::to_string(t) + " is in no sphere";
+  }
+  return {};
+}
+
 }  // namespace clod_haptics

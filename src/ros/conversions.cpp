@@ -85,35 +85,6 @@ ClodSphereSet fromMsg(const SphereSet& msg) {
   return set;
 }
 
-std::string checkCoverage(const TriangleMesh& mesh, const ClodSphereSet& set, double relativeTolerance) {
-  if (set.centres.size() != set.radii.size() || set.offsets.size() != set.centres.size() + 1 ||
-      set.offsets.back() != set.triangles.size()) {
-    return "inconsistent array sizes";
-  }
-  const double tol = relativeTolerance * std::max(mesh.diagonal(), 1e-300);
-  std::vector<char> covered(mesh.size(), 0);
-  for (std::size_t i = 0; i < set.size(); ++i) {
-    if (set.offsets[i] > set.offsets[i + 1]) return "offsets decrease at sphere " + std::to_string(i);
-    for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t) {
-      if (*t >= mesh.size()) {
-        return "sphere " + std::to_string(i) + " lists triangle " + std::to_string(*t) + " but the mesh has " +
-               std::to_string(mesh.size());
-      }
-      for (int k = 0; k < 3; ++k) {
-        if ((mesh.vertex(*t, k) - set.centres[i]).norm() > set.radii[i] + tol) {
-          return "triangle " + std::to_string(*t) + " sticks out of sphere " + std::to_string(i) +
-                 " (is it the same mesh and scale?)";
-        }
-      }
-      covered[*t] = 1;
-    }
-  }
-  for (std::size_t t = 0; t < covered.size(); ++t) {
-    if (!covered[t]) return "triangle " + std::to_string(t) + " is in no sphere";
-  }
-  return {};
-}
-
 void toMsg(const ContactResult& result, const Vec3& pointer, double radius, Contact& msg) {
   msg.in_contact = result.contact;
   if (result.contact) {

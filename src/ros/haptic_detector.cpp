@@ -447,7 +447,7 @@ std::shared_ptr<const ClodSphereSet> HapticDetector::fetchFromService(double dis
     return nullptr;
   }
   auto set = std::make_shared<ClodSphereSet>(fromMsg(srv.response.sphere_set));
-  const std::string mismatch = checkCoverage(*mesh_, *set, 1e-9);
+  const std::string mismatch = fitProblem(*mesh_, *set);
   if (!mismatch.empty()) {
     why = "the served set does not fit this detector's mesh: " + mismatch;
     return nullptr;

@@ -17,7 +17,9 @@
 
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
+#include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "test_helpers.h"
@@ -136,12 +138,6 @@ bool sane(const ContactResult& c, const Vec3& p, double r, double tol) {
   return c.point.allFinite() && c.normal.allFinite() && std::abs(c.normal.norm() - 1.0) < 1e-9 &&
          std::isfinite(c.distance) && c.distance >= 0.0 && (c.inside || c.distance <= r + tol) &&
          std::abs(c.depth - depth) <= tol && std::abs((p - c.point).norm() - c.distance) <= tol;
-}
-
-// What a stream with a QueryCache must answer: within r as bruteForceQuery; right after an answer with the
-// centre inside, also a deeper inside contact (bruteForceSignedQuery).
-ContactResult streamReference(const TriangleMesh& mesh, const Vec3& p, double r, bool previousInside) {
-  return previousInside ? bruteForceSignedQuery(mesh, p, r) : bruteForceQuery(mesh, p, r);
 }
 
 Counts compareRange(const TriangleMesh& mesh, const ClodDetector& det, const std::vector<Vec3>& probes,
@@ -709,6 +705,29 @@ TEST(ClodDetector, AFollowedPushEndsOutside) {
     EXPECT_FALSE(out.contact);
     EXPECT_FALSE(cache.lastInside);
   }
+}
+
+// A level built for another mesh is refused with a typed error, never read past the mesh's arrays (it was a
+// heap-buffer-overflow under ASan): the torus's set (3,200 triangles listed) against the 12-triangle box, and
+// the torus's own set on the torus scaled by 2 (indices in range, coverage broken).
+TEST(ClodDetector, ASetThatDoesNotFitTheMeshIsRefused) {
+  const auto torus = clod_test::loadNormalized(clod_test::testData("../../data/meshes/torus.obj"));
+  const auto box = std::make_shared<const TriangleMesh>(loadMesh(clod_test::testData("box_4x2x1.obj")));
+  const auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(torus).build(0.01));
+  ASSERT_EQ(fitProblem(*torus, *set), "");
+  for (FastLevel level : {FastLevel::Grid, FastLevel::Hierarchy, FastLevel::Flat}) {
+    EXPECT_THROW(ClodDetector(box, set, level), SphereSetMismatch);
+    try {
+      ClodDetector(box, set, level);
+    } catch (const SphereSetMismatch& e) {
+      EXPECT_NE(std::string(e.what()).find("does not fit mesh 'box_4x2x1.obj'"), std::string::npos) << e.what();
+    }
+  }
+  std::vector<Vec3> doubled = torus->vertices;
+  for (Vec3& v : doubled) v *= 2.0;
+  const auto bigger = std::make_shared<const TriangleMesh>(makeMesh(doubled, torus->triangles, "torus x2"));
+  EXPECT_THROW(ClodDetector(bigger, set), SphereSetMismatch);
+  EXPECT_NO_THROW(ClodDetector(torus, set));
 }
 
 TEST(FastLevel, Parses) {

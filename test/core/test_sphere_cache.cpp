@@ -251,7 +251,7 @@ TEST_F(SphereCacheTest, SetThatDoesNotCoverTheMeshIsRejected) {
                    std::memcpy(b.data() + radius0, &r, 8);
                    fixChecksum(b);
                  },
-                 "does not reach", mesh_, d_, builds_, counted(d_));
+                 "sticks out of sphere", mesh_, d_, builds_, counted(d_));
 }
 
 TEST_F(SphereCacheTest, FileOfAnotherDistanceUnderThisNameIsStale) {

@@ -46,7 +46,7 @@ TEST(Conversions, SphereSetRoundTripKeepsEverything) {
     EXPECT_EQ(back.radii[i], set.radii[i]);
   }
   EXPECT_EQ(back.stats.centres, set.stats.centres);
-  EXPECT_EQ(checkCoverage(*torus(), back), "");
+  EXPECT_EQ(fitProblem(*torus(), back), "");
 }
 
 TEST(Conversions, FromMsgRejectsNonFiniteAndNegativeRadius) {
@@ -64,28 +64,28 @@ TEST(Conversions, FromMsgRejectsNonFiniteAndNegativeRadius) {
 TEST(Conversions, CoverageCheckCatchesAnotherMeshOrScale) {
   ClodBuilder builder(torus());
   ClodSphereSet set = builder.build(0.003);
-  EXPECT_EQ(checkCoverage(*torus(), set), "");
+  EXPECT_EQ(fitProblem(*torus(), set), "");
 
   ClodSphereSet shrunk = set;
   shrunk.radii[0] *= 0.5;  // a triangle now sticks out
-  EXPECT_NE(checkCoverage(*torus(), shrunk), "");
+  EXPECT_NE(fitProblem(*torus(), shrunk), "");
 
   ClodSphereSet outOfRange = set;
   outOfRange.triangles[0] = static_cast<std::uint32_t>(torus()->size());
-  EXPECT_NE(checkCoverage(*torus(), outOfRange).find("lists triangle"), std::string::npos);
+  EXPECT_NE(fitProblem(*torus(), outOfRange).find("lists triangle"), std::string::npos);
 
   // The same file loaded at twice the scale does not fit the set.
   MeshLoadOptions options;
   options.scale = 2.0;
   const TriangleMesh bigger = loadMesh(CLOD_PACKAGE_DATA_DIR "/meshes/torus.obj", options);
-  EXPECT_NE(checkCoverage(bigger, set), "");
+  EXPECT_NE(fitProblem(bigger, set), "");
 
   ClodSphereSet missing = set;  // drop the last sphere: its triangles may be uncovered
   missing.centres.clear();
   missing.radii.clear();
   missing.offsets.assign(1, 0);
   missing.triangles.clear();
-  EXPECT_NE(checkCoverage(*torus(), missing).find("in no sphere"), std::string::npos);
+  EXPECT_NE(fitProblem(*torus(), missing).find("in no sphere"), std::string::npos);
 }
 
 TEST(Conversions, ContactMessageMatchesTheCoreResult) {

@@ -77,7 +77,7 @@ TEST(SphereBuilder, RoundTripMatchesTheCoreCountAndShrinksWithDistance) {
     // Same spheres as the core's, and they wrap every triangle of the mesh.
     const ClodSphereSet got = fromMsg(msg);
     EXPECT_EQ(got.triangles, expected.triangles);
-    EXPECT_EQ(checkCoverage(*referenceMesh(), got), "") << "d = " << d;
+    EXPECT_EQ(fitProblem(*referenceMesh(), got), "") << "d = " << d;
   }
 }
 

@@ -55,6 +55,7 @@ class ClodDetector {
    * \brief Prepares the flat arrays and trees; the mesh and set are kept alive by the pointers.
    * \param gridRadius for FastLevel::Grid, the largest pointer radius the grid serves (larger ones use
    * the hierarchy); 0 picks 1% of the model's diagonal.
+   * \throws SphereSetMismatch when the set does not fit the mesh (fitProblem): built for another mesh or scale.
    */
   ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
                FastLevel fastLevel = FastLevel::Grid, double gridRadius = 0.0);

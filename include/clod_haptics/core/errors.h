@@ -35,6 +35,12 @@ class InvalidParameter : public ClodError {
   using ClodError::ClodError;
 };
 
+/** \brief A sphere set that does not fit the mesh it is used with (built for another mesh or scale, or corrupt). */
+class SphereSetMismatch : public ClodError {
+ public:
+  using ClodError::ClodError;
+};
+
 /** \brief A file written by this package (sphere set, cache) is unreadable or inconsistent. */
 class FormatError : public ClodError {
  public:

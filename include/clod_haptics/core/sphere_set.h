@@ -92,6 +92,16 @@ class ClodBuilder {
  */
 std::vector<std::uint32_t> firstSphereOfTriangles(const ClodSphereSet& set, std::size_t triangles);
 
+/**
+ * \brief Why the set does not fit the mesh, or "" when it does. It fits when its arrays are consistent (offsets from
+ * 0, never decreasing, up to the list's end), every sphere is finite, every listed index is a triangle of the mesh,
+ * every listed triangle's vertices lie in the sphere (within radius * (1 + 1e-9) + relativeTolerance * the mesh's
+ * diagonal) and every triangle is listed. The coverage invariant the detector relies on to miss no contact, and
+ * what keeps its lists inside the mesh's arrays. O(list entries); the one check of the detector's constructor,
+ * the sphere cache and the ROS service client.
+ */
+std::string fitProblem(const TriangleMesh& mesh, const ClodSphereSet& set, double relativeTolerance = 1e-12);
+
 /** \brief Throws InvalidParameter unless d is finite and not negative; what names the parameter. */
 void requireNonNegative(double value, const char* what);
 

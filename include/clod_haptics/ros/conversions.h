@@ -22,13 +22,6 @@ void toMsg(const ClodSphereSet& set, const std_msgs::Header& header, SphereSet& 
  */
 ClodSphereSet fromMsg(const SphereSet& msg);
 
-/**
- * \brief Checks that a sphere set (from another node) fits a mesh: every triangle index in range,
- * every triangle listed by at least one sphere whose radius reaches all three vertices (with a
- * relative tolerance). Returns an empty string when it fits, else the reason. The detector relies
- * on this invariant to miss no contact.
- */
-std::string checkCoverage(const TriangleMesh& mesh, const ClodSphereSet& set, double relativeTolerance = 1e-9);
 
 /**
  * \brief Fills a contact message from a core result; pointer and radius are the query's, in the
