@@ -33,20 +33,11 @@ double nearest(const TriangleMesh& mesh, const Vec3& p, ContactResult& out) {
 
 }  // namespace
 
-ContactResult bruteForceQuery(const TriangleMesh& mesh, const Vec3& p, double r) {
-  ContactResult out;
-  if (!validPointer(p, r)) return out;
-  ContactResult found;
-  const double best = nearest(mesh, p, found);
-  out.trianglesTested = found.trianglesTested;
-  if (!(best <= r * r)) return out;
-  out = found;
-  out.contact = true;
-  finishContact(mesh, p, r, out);
-  return out;
-}
+namespace {
 
-ContactResult bruteForceSignedQuery(const TriangleMesh& mesh, const Vec3& p, double r) {
+// Both references: the nearest triangle, finished by the shared sign rule; a contact within r, and with
+// anyDepthInside also a centre behind the surface at any depth inside the mesh's bounds.
+ContactResult reference(const TriangleMesh& mesh, const Vec3& p, double r, bool anyDepthInside) {
   ContactResult out;
   if (!validPointer(p, r)) return out;
   ContactResult found;
@@ -55,8 +46,18 @@ ContactResult bruteForceSignedQuery(const TriangleMesh& mesh, const Vec3& p, dou
   if (!std::isfinite(best)) return out;
   found.contact = true;
   finishContact(mesh, p, r, found);
-  if (best <= r * r || (found.inside && mesh.bounds().contains(p))) out = found;
+  if (best <= r * r || (anyDepthInside && found.inside && mesh.bounds().contains(p))) out = found;
   return out;
+}
+
+}  // namespace
+
+ContactResult bruteForceQuery(const TriangleMesh& mesh, const Vec3& p, double r) {
+  return reference(mesh, p, r, false);
+}
+
+ContactResult bruteForceSignedQuery(const TriangleMesh& mesh, const Vec3& p, double r) {
+  return reference(mesh, p, r, true);
 }
 
 }  // namespace clod_haptics
