@@ -17,7 +17,7 @@
 namespace clod_bench {
 
 using clod_haptics::closestPointOnTriangle;
-using clod_haptics::contactNormal;
+using clod_haptics::finishContact;
 
 // ---------------------------------------------------------------------------------------------
 PrunedReference::PrunedReference(const TriangleMesh& mesh, double r) : mesh_(mesh), r_(r) {
@@ -100,9 +100,8 @@ ContactResult PrunedReference::query(const Vec3& p) const {
   out.contact = true;
   out.point = bestPoint;
   out.distance = std::sqrt(best);
-  out.depth = r_ - out.distance;
   out.triangle = static_cast<std::int32_t>(bestTri);
-  out.normal = contactNormal(p, bestPoint, mesh_.normals[bestTri]);
+  finishContact(mesh_, p, r_, out);  // side, signed depth and normal: the rule bruteForceQuery and the detector share
   return out;
 }
 
