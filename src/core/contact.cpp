@@ -31,18 +31,6 @@ const char* toString(DetectionMode mode) {
   return "unknown";
 }
 
-Vec3 contactNormal(const Vec3& p, const Vec3& q, const Vec3& faceNormal) {
-  const Vec3 v = p - q;
-  const double len = v.norm();
-  if (len > 0.0 && std::isfinite(len)) {
-    Vec3 dir = v / len;
-    if (dir.dot(faceNormal) < 0.0) dir = -dir;
-    return dir;
-  }
-  if (!faceNormal.isZero(0.0)) return faceNormal;
-  return Vec3::UnitZ();  // pointer centre exactly on a zero-area triangle: no direction is better than another
-}
-
 Vec3 pseudoNormal(const TriangleMesh& mesh, std::uint32_t t, const TriangleRegion& region) noexcept {
   const Vec3& n = mesh.normals[t];
   const Triangle& tri = mesh.triangles[t];

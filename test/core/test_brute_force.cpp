@@ -248,16 +248,30 @@ TEST(BruteForceSigned, OpenSheetAndInvalidInput) {
   EXPECT_FALSE(bruteForceSignedQuery(mesh, Vec3(std::nan(""), 0, 0), 0.1).contact);
 }
 
-TEST(ContactNormal, NeverNaN) {
-  const Vec3 n(0, 0, 1);
-  EXPECT_TRUE(contactNormal(Vec3(0, 0, 2), Vec3(0, 0, 0), n).isApprox(Vec3(0, 0, 1)));
-  EXPECT_TRUE(contactNormal(Vec3(0, 0, -2), Vec3(0, 0, 0), n).isApprox(Vec3(0, 0, 1))) << "flipped to n's side";
-  EXPECT_TRUE(contactNormal(Vec3(1, 0, 1), Vec3(0, 0, 0), n).isApprox(Vec3(1, 0, 1).normalized()));
-  EXPECT_EQ(contactNormal(Vec3(1, 2, 3), Vec3(1, 2, 3), n), n) << "on the surface: the face normal";
-  const Vec3 z = contactNormal(Vec3(1, 2, 3), Vec3(1, 2, 3), Vec3::Zero());
+// finishContact's normal is never NaN (the guarantees contactNormal had, now of the function that replaced it):
+// outside it points from the contact to the centre, behind the face still outward, on the surface it is the
+// face's, on a zero-area triangle with the centre on it some unit vector, and a tiny offset stays finite.
+TEST(FinishContact, NormalNeverNaN) {
+  auto finish = [](const TriangleMesh& mesh, const Vec3& p, const Vec3& q) {
+    ContactResult c;
+    c.contact = true;
+    c.triangle = 0;
+    c.point = q;
+    c.distance = (p - q).norm();
+    finishContact(mesh, p, 1.0, c);
+    return c.normal;
+  };
+  const TriangleMesh flat = makeMesh({Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(0, 1, 0)}, {Triangle{0, 1, 2}});
+  ASSERT_TRUE(flat.normals[0].isApprox(Vec3(0, 0, 1)));
+  EXPECT_TRUE(finish(flat, Vec3(0, 0, 2), Vec3(0, 0, 0)).isApprox(Vec3(0, 0, 1)));
+  EXPECT_TRUE(finish(flat, Vec3(0, 0, -2), Vec3(0, 0, 0)).isApprox(Vec3(0, 0, 1))) << "behind the face: outward";
+  EXPECT_TRUE(finish(flat, Vec3(1, 0, 1), Vec3(0, 0, 0)).isApprox(Vec3(1, 0, 1).normalized()));
+  EXPECT_EQ(finish(flat, Vec3(0, 0, 0), Vec3(0, 0, 0)), flat.normals[0]) << "on the surface: the face normal";
+  EXPECT_TRUE(finish(flat, Vec3(1e-300, 0, 0), Vec3(0, 0, 0)).allFinite());
+  const TriangleMesh sliver = makeMesh({Vec3(0, 0, 0), Vec3(1, 1, 1), Vec3(2, 2, 2)}, {Triangle{0, 1, 2}});
+  const Vec3 z = finish(sliver, Vec3(1, 1, 1), Vec3(1, 1, 1));
   EXPECT_TRUE(z.allFinite());
   EXPECT_NEAR(z.norm(), 1.0, 1e-15) << "zero-area triangle, pointer on it: some unit vector";
-  EXPECT_TRUE(contactNormal(Vec3(1e-300, 0, 0), Vec3(0, 0, 0), n).allFinite());
 }
 
 }  // namespace

@@ -76,11 +76,4 @@ bool pointBehindSurface(const TriangleMesh& mesh, const Vec3& p, std::uint32_t t
  */
 void finishContact(const TriangleMesh& mesh, const Vec3& p, double r, ContactResult& out) noexcept;
 
-/**
- * \brief Fills the outward normal for a contact at q from pointer centre p on a triangle with face
- * normal n: the direction from q to p, flipped to n's side when p lies behind the face, or n itself
- * when p is on the surface. Never NaN.
- */
-Vec3 contactNormal(const Vec3& p, const Vec3& q, const Vec3& faceNormal);
-
 }  // namespace clod_haptics
