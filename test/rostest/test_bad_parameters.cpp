@@ -57,6 +57,18 @@ TEST(BadParameters, DetectorNodeWithUnknownClusteringExitsNonZero) {
                      "det_clustering/clustering");
 }
 
+TEST(BadParameters, DetectorNodeWithUnknownPosePolicyExitsNonZero) {
+  expectCleanFailure(run(std::string(CLOD_DETECTOR_PATH) + " __name:=det_bad_policy _pose_policy:=newest _mesh:=" +
+                         CLOD_PACKAGE_DATA_DIR "/meshes/torus.obj"),
+                     "~pose_policy must be all");
+}
+
+TEST(BadParameters, DetectorNodeWithOutOfRangeRealtimePriorityExitsNonZero) {
+  expectCleanFailure(run(std::string(CLOD_DETECTOR_PATH) + " __name:=det_bad_rt _realtime_priority:=100 _mesh:=" +
+                         CLOD_PACKAGE_DATA_DIR "/meshes/torus.obj"),
+                     "~realtime_priority must be in 0..99");
+}
+
 TEST(BadParameters, DetectorNodeWithoutMeshParameterExitsNonZero) {
   expectCleanFailure(run(std::string(CLOD_DETECTOR_PATH) + " __name:=det_no_mesh"), "det_no_mesh/mesh");
 }
