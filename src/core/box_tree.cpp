@@ -4,17 +4,13 @@
 #include <cmath>
 #include <limits>
 
+#include "float_rounding.h"
+
 namespace clod_haptics {
 namespace {
 
-float roundDown(double x) {
-  float f = static_cast<float>(x);
-  return static_cast<double>(f) > x ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
-}
-float roundUp(double x) {
-  float f = static_cast<float>(x);
-  return static_cast<double>(f) < x ? std::nextafter(f, std::numeric_limits<float>::infinity()) : f;
-}
+using detail::roundDown;
+using detail::roundUp;
 
 struct Builder {
   const std::vector<Eigen::AlignedBox3d>& boxes;

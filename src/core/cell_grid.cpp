@@ -6,6 +6,7 @@
 
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
+#include "float_rounding.h"
 #include "parallel.h"
 
 namespace clod_haptics {
@@ -25,10 +26,7 @@ std::uint64_t mix(std::uint64_t k) {
   return k ^ (k >> 33);
 }
 
-float roundDown(double x) {
-  float f = static_cast<float>(x);
-  return static_cast<double>(f) > x ? std::nextafter(f, -std::numeric_limits<float>::infinity()) : f;
-}
+using detail::roundDown;
 
 struct Candidate {
   std::uint64_t key;

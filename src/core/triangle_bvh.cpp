@@ -10,6 +10,7 @@
 #include <immintrin.h>
 #endif
 
+#include "float_rounding.h"
 #include "parallel.h"
 
 namespace clod_haptics {
@@ -22,26 +23,8 @@ constexpr int kBins = 16;
 // kMaxSahDepth + 32, within the traversal's stack (one pending entry per level).
 constexpr int kMaxSahDepth = 64;
 
-// The next float below / above f (f not NaN), by its bit pattern: nextafterf is a library call, and
-// this runs six times per triangle.
-float below(float f) {
-  if (f == 0.0f) return -std::numeric_limits<float>::denorm_min();
-  std::uint32_t bits;
-  std::memcpy(&bits, &f, sizeof bits);
-  bits = f > 0.0f ? bits - 1 : bits + 1;
-  std::memcpy(&f, &bits, sizeof f);
-  return f;
-}
-float above(float f) { return -below(-f); }
-// x rounded to float downward / upward.
-float down(double x) {
-  const float f = static_cast<float>(x);
-  return static_cast<double>(f) > x ? below(f) : f;
-}
-float up(double x) {
-  const float f = static_cast<float>(x);
-  return static_cast<double>(f) < x ? above(f) : f;
-}
+using detail::roundDown;
+using detail::roundUp;
 
 // A float box; the triangles' boxes are rounded outward, so unions of them stay conservative.
 struct Box {
@@ -383,8 +366,8 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
   auto roundVertices = [&](std::size_t begin, std::size_t end) {
     for (std::size_t v = begin; v < end; ++v)
       for (int k = 0; k < 3; ++k) {
-        rounded[6 * v + k] = down(mesh.vertices[v][k] - margin);
-        rounded[6 * v + 3 + k] = up(mesh.vertices[v][k] + margin);
+        rounded[6 * v + k] = roundDown(mesh.vertices[v][k] - margin);
+        rounded[6 * v + 3 + k] = roundUp(mesh.vertices[v][k] + margin);
       }
   };
   auto fill = [&](std::size_t begin, std::size_t end) {
@@ -460,11 +443,11 @@ void PacketFloat::setCull(const PacketCull& cull, int r) {
     axis[k][r] = static_cast<float>(cull.axis[k][r]);
     sum += std::fabs(cull.axis[k][r]);
   }
-  slack[r] = up(sum * 0x1p-21 + 2.0 * PacketCull::kSlack);
-  cap[r] = up(cull.cap[r]);
-  below[r] = up(cull.below[r]);
-  nearBelow[r] = up(cull.nearBelow[r]);
-  within[r] = up(cull.within[r]);
+  slack[r] = roundUp(sum * 0x1p-21 + 2.0 * PacketCull::kSlack);
+  cap[r] = roundUp(cull.cap[r]);
+  below[r] = roundUp(cull.below[r]);
+  nearBelow[r] = roundUp(cull.nearBelow[r]);
+  within[r] = roundUp(cull.within[r]);
 }
 
 bool PacketFloat::set(const double* origins, const double* dirs, const double* inverse, int count,
@@ -483,7 +466,7 @@ bool PacketFloat::set(const double* origins, const double* dirs, const double* i
   }
   if (!(bound >= 1e-18 && bound <= kLimit)) return false;  // the widening stays a normal float
   const double w = std::ldexp(bound, -18);
-  widen = up(w);
+  widen = roundUp(w);
   for (int k = 0; k < 3; ++k)
     for (int r = 0; r < W; ++r) {
       o[k][r] = static_cast<float>(origins[k * W + r]);
