@@ -94,4 +94,20 @@ void finishContact(const TriangleMesh& mesh, const Vec3& p, double r, ContactRes
   }
 }
 
+Vec3 penaltyForce(const Vec3& penetration, double stiffness, double maxForce) noexcept {
+  if (!(stiffness > 0.0)) return Vec3::Zero();
+  Vec3 f = stiffness * penetration;
+  if (!f.allFinite()) return Vec3::Zero();
+  if (maxForce > 0.0) {
+    const double n = f.norm();
+    if (n > maxForce) f *= maxForce / n;
+  }
+  return f;
+}
+
+Vec3 penaltyForce(const ContactResult& result, double stiffness, double maxForce) noexcept {
+  if (!result.contact || !(result.depth > 0.0)) return Vec3::Zero();
+  return penaltyForce(Vec3(result.depth * result.normal), stiffness, maxForce);
+}
+
 }  // namespace clod_haptics

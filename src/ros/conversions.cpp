@@ -108,17 +108,24 @@ void toMsg(const ContactResult& result, const Vec3& pointer, double radius, Cont
   msg.pointer_radius = radius;
 }
 
-// depth is the signed penetration (r + distance with the centre inside), so the spring keeps growing
-// while the stylus pushes in; maxForce bounds it.
-Vec3 penaltyForce(const ContactResult& result, double stiffness, double maxForce) {
-  if (!result.contact || !(result.depth > 0.0) || !(stiffness > 0.0)) return Vec3::Zero();
-  Vec3 f = stiffness * result.depth * result.normal;
-  if (!f.allFinite()) return Vec3::Zero();
-  if (maxForce > 0.0) {
-    const double n = f.norm();
-    if (n > maxForce) f *= maxForce / n;
-  }
-  return f;
+geometry_msgs::Pose toPose(const Eigen::Isometry3d& pose) {
+  geometry_msgs::Pose msg;
+  msg.position = toPoint(pose.translation());
+  const Eigen::Quaterniond q(pose.linear());
+  msg.orientation.x = q.x();
+  msg.orientation.y = q.y();
+  msg.orientation.z = q.z();
+  msg.orientation.w = q.w();
+  return msg;
+}
+
+Eigen::Isometry3d toIsometry(const geometry_msgs::Transform& transform) {
+  const auto& t = transform.translation;
+  const auto& q = transform.rotation;
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.translate(Vec3(t.x, t.y, t.z));
+  out.rotate(Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized());
+  return out;
 }
 
 void toMsg(const Vec3& force, geometry_msgs::Wrench& msg) {

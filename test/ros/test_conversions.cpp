@@ -125,58 +125,7 @@ TEST(Conversions, ContactMessageMatchesTheCoreResult) {
   EXPECT_FALSE(msg.inside) << "cleared with the other stale fields";
 }
 
-// Issue 14, item 3: a stylus stream pressing into the torus's tube from outside its outer equator to the
-// tube's middle circle: the penalty force grows at every step from the first touch, points out, and is
-// clamped by max force; the same poses without the stream's cache lose the contact once deeper than r.
-TEST(Conversions, PenaltyForceGrowsWhilePushingIn) {
-  const auto mesh = torus();
-  const auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.003));
-  const ClodDetector det(mesh, set);
-  const double r = 0.002, stiffness = 500.0;
-  // The tube's middle at the outer equator: halfway between the inner and outer crossings of the x axis.
-  double inner = 0.0;
-  for (const Vec3& v : mesh->vertices)
-    if (std::abs(v.y()) < 1e-12 && std::abs(v.z()) < 1e-12 && v.x() > 0.0) inner = inner == 0.0 ? v.x() : std::min(inner, v.x());
-  ASSERT_GT(inner, 0.0);
-  const double outer = 0.082, middle = 0.5 * (inner + outer);
-  QueryCache cache;
-  ContactResult got, stateless;
-  double last = -1.0;
-  int touching = 0, lostWithoutCache = 0;
-  for (int i = 0; i <= 300; ++i) {
-    const Vec3 p(outer + 2 * r - (2 * r + outer - middle) * i / 300.0, 0.0, 0.0);
-    det.query(p, r, DetectionMode::Exact, got, &cache);
-    const Vec3 f = penaltyForce(got, stiffness);
-    if (!got.contact) {
-      ASSERT_LT(last, 0.0) << "step " << i << ": the contact was lost while pushing in";
-      continue;
-    }
-    ++touching;
-    ASSERT_GT(f.norm(), last) << "step " << i;
-    ASSERT_GT(f.x(), 0.0) << "step " << i << ": pushes out of the tube";
-    ASSERT_LE(penaltyForce(got, stiffness, 0.5).norm(), 0.5 + 1e-12);
-    last = f.norm();
-    det.query(p, r, DetectionMode::Exact, stateless);
-    lostWithoutCache += !stateless.contact;
-  }
-  EXPECT_GT(touching, 200);
-  EXPECT_GT(lostWithoutCache, 50) << "the stream's cache is what follows the push beyond r";
-}
-
-TEST(Conversions, PenaltyForceIsStiffnessTimesDepthAlongTheNormal) {
-  ContactResult r;
-  r.contact = true;
-  r.depth = 0.001;
-  r.normal = Vec3(0.0, 0.6, 0.8);
-  const Vec3 f = penaltyForce(r, 500.0);
-  EXPECT_NEAR(f.y(), 500.0 * 0.001 * 0.6, 1e-12);
-  EXPECT_NEAR(f.z(), 500.0 * 0.001 * 0.8, 1e-12);
-  EXPECT_NEAR(penaltyForce(r, 500.0, 0.3).norm(), 0.3, 1e-12);  // clamped
-  r.contact = false;
-  EXPECT_EQ(penaltyForce(r, 500.0), Vec3::Zero());
-  r.contact = true;
-  EXPECT_EQ(penaltyForce(r, 0.0), Vec3::Zero());
-
+TEST(Conversions, ForceToWrenchHasNoTorque) {
   geometry_msgs::Wrench w;
   toMsg(Vec3(1.0, 2.0, 3.0), w);
   EXPECT_EQ(w.force.z, 3.0);

@@ -76,4 +76,15 @@ bool pointBehindSurface(const TriangleMesh& mesh, const Vec3& p, std::uint32_t t
  */
 void finishContact(const TriangleMesh& mesh, const Vec3& p, double r, ContactResult& out) noexcept;
 
+/**
+ * \brief The penalty spring force of a penetration vector (depth times the outward normal, summed over the
+ * contacts of a scene): stiffness * penetration, clamped to maxForce when maxForce > 0; zero when the stiffness
+ * is not positive or the result is not finite. depth is the signed penetration (ContactResult::depth), so the
+ * force grows monotonically while the stylus pushes in, up to the clamp. Allocates nothing.
+ */
+Vec3 penaltyForce(const Vec3& penetration, double stiffness, double maxForce = 0.0) noexcept;
+
+/** \brief The penalty force of one contact: penaltyForce(depth * normal, ...); zero without contact or depth. */
+Vec3 penaltyForce(const ContactResult& result, double stiffness, double maxForce = 0.0) noexcept;
+
 }  // namespace clod_haptics

@@ -1,10 +1,13 @@
 #pragma once
 
 #include <geometry_msgs/Pose.h>
+#include <geometry_msgs/Transform.h>
 #include <geometry_msgs/WrenchStamped.h>
 #include <std_msgs/Header.h>
 
 #include <string>
+
+#include <Eigen/Geometry>
 
 #include "clod_haptics/Contact.h"
 #include "clod_haptics/SphereSet.h"
@@ -29,13 +32,11 @@ ClodSphereSet fromMsg(const SphereSet& msg);
  */
 void toMsg(const ContactResult& result, const Vec3& pointer, double radius, Contact& msg);
 
-/**
- * \brief The penalty spring force of a contact: stiffness * depth along the outward normal, clamped
- * to maxForce when maxForce > 0; zero without contact. depth is the signed penetration
- * (ContactResult::depth: r - distance outside, r + distance inside), so the force grows monotonically
- * while the stylus pushes in, up to the clamp. Torque is zero.
- */
-Vec3 penaltyForce(const ContactResult& result, double stiffness, double maxForce = 0.0);
+/** \brief A rigid transform as a pose message. */
+geometry_msgs::Pose toPose(const Eigen::Isometry3d& pose);
+
+/** \brief A transform message as a rigid transform (the quaternion normalised). */
+Eigen::Isometry3d toIsometry(const geometry_msgs::Transform& transform);
 
 /** \brief Writes a force into a wrench message (torque zero). */
 void toMsg(const Vec3& force, geometry_msgs::Wrench& msg);
