@@ -47,8 +47,10 @@ std::uint32_t SceneDetector::addObject(std::string name, std::shared_ptr<const T
   boundY_.push_back(0.0);
   boundZ_.push_back(0.0);
   boundR_.push_back(radius);
+  sphereGrow_.push_back(0.0);
   active_.push_back(1);
   setPose(index, worldFromObject);
+  measureSpheres(index);
   return index;
 }
 
@@ -75,6 +77,24 @@ void SceneDetector::setDetector(std::uint32_t i, std::shared_ptr<const ClodDetec
     throw InvalidParameter("scene object '" + object.name + "': the detector was built for another mesh");
   }
   object.detector = std::move(detector);
+  measureSpheres(i);
+}
+
+void SceneDetector::measureSpheres(std::uint32_t i) {
+  // Spheres mode answers contact with a CLOD sphere, and a sphere reaches beyond the mesh's bound: how far, for
+  // the sphere test and for the box test.
+  Object& object = objects_[i];
+  double sphereGrow = 0.0, boxGrow = 0.0;
+  if (object.detector) {
+    const ClodSphereSet& set = *object.detector->spheres();
+    for (std::size_t s = 0; s < set.size(); ++s) {
+      const double r = set.radii[s];
+      sphereGrow = std::max(sphereGrow, (set.centres[s] - object.localCentre).norm() + r - boundR_[i]);
+      boxGrow = std::max(boxGrow, object.localBox.exteriorDistance(set.centres[s]) + r);
+    }
+  }
+  sphereGrow_[i] = sphereGrow * (1.0 + 1e-9) + 1e-12;
+  object.boxGrow = boxGrow * (1.0 + 1e-9) + 1e-12;
 }
 
 void SceneDetector::setActive(std::uint32_t i, bool active) {
@@ -95,15 +115,17 @@ void SceneDetector::query(const Vec3& p, double r, DetectionMode mode, SceneCont
   constexpr std::size_t kBlock = 64;
   double margin[kBlock];  // squared distance minus squared reach: <= 0 when the pointer reaches the bound
   const double px = p.x(), py = p.y(), pz = p.z();
+  const bool spheres = mode == DetectionMode::Spheres;
   for (std::size_t base = 0; base < n; base += kBlock) {
     const std::size_t m = std::min(kBlock, n - base);
     const double* __restrict bx = boundX_.data() + base;
     const double* __restrict by = boundY_.data() + base;
     const double* __restrict bz = boundZ_.data() + base;
     const double* __restrict br = boundR_.data() + base;
+    const double* __restrict grow = sphereGrow_.data() + base;
     for (std::size_t k = 0; k < m; ++k) {
       const double dx = px - bx[k], dy = py - by[k], dz = pz - bz[k];
-      const double reach = br[k] + r;
+      const double reach = br[k] + r + (spheres ? grow[k] : 0.0);
       margin[k] = dx * dx + dy * dy + dz * dz - reach * reach;  // a - b <= 0 exactly when a <= b
     }
     for (std::size_t k = 0; k < m; ++k) {
@@ -115,7 +137,7 @@ void SceneDetector::query(const Vec3& p, double r, DetectionMode mode, SceneCont
       const Object& object = objects_[i];
       const Vec3 local = object.objectFromWorld * p;
       // The box is tighter than the sphere for long or flat objects; still no sphere touched.
-      if (object.localBox.exteriorDistance(local) > r) {
+      if (object.localBox.exteriorDistance(local) > r + (spheres ? object.boxGrow : 0.0)) {
         if (caches) caches[i].lastInside = false;
         continue;
       }

@@ -101,14 +101,17 @@ class SceneDetector {
     Eigen::Isometry3d objectFromWorld = Eigen::Isometry3d::Identity();
     Vec3 localCentre = Vec3::Zero();             ///< bounding-sphere centre in the mesh frame
     Eigen::AlignedBox3d localBox;                ///< mesh bounds in the mesh frame (second, tighter test)
+    double boxGrow = 0.0;                        ///< how far the level's spheres reach beyond localBox
     EIGEN_MAKE_ALIGNED_OPERATOR_NEW
   };
   void updateBound(std::uint32_t i);
+  void measureSpheres(std::uint32_t i);
 
   // The hot data of the rejection test, one array per coordinate so the test over all objects
   // vectorises: the world centre of each bounding sphere (NaN while the object is inactive, which no
   // comparison accepts) and its radius.
   std::vector<double> boundX_, boundY_, boundZ_, boundR_;
+  std::vector<double> sphereGrow_;  // spheres mode: how far the level's spheres reach beyond boundR_
   std::vector<char> active_;
   std::uint32_t inactive_ = 0;
   std::vector<Object, Eigen::aligned_allocator<Object>> objects_;
