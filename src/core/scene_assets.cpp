@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cstring>
+#include <iterator>
 #include <sstream>
 
 #include "clod_haptics/core/errors.h"
@@ -9,9 +10,16 @@
 namespace clod_haptics {
 
 SceneAssets::SceneAssets(std::shared_ptr<SphereSetCache> cache, FastLevel fastLevel, double gridRadius,
-                         bool keepBuilders)
-    : cache_(std::move(cache)), fastLevel_(fastLevel), gridRadius_(gridRadius), keepBuilders_(keepBuilders) {
-  if (!cache_) cache_ = std::make_shared<SphereSetCache>();
+                         bool keepBuilders, std::shared_ptr<const Clustering> clustering)
+    : cache_(std::move(cache)),
+      clustering_(clustering ? std::move(clustering) : std::make_shared<const SingleLinkClustering>()),
+      fastLevel_(fastLevel),
+      gridRadius_(gridRadius),
+      keepBuilders_(keepBuilders) {}
+
+void SceneAssets::setRemote(RemoteSource remote) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  remote_ = std::move(remote);
 }
 
 void SceneAssets::setMeshCache(std::shared_ptr<MeshCache> meshCache) {
@@ -69,19 +77,56 @@ std::shared_ptr<const ClodSphereSet> SceneAssets::spheresLocked(const std::share
     return knownSet->second.second;
   }
   const std::uint64_t h = hashLocked(mesh);
-  auto build = [&]() -> ClodSphereSet {
-    std::shared_ptr<const ClodBuilder> use = builders_[h];
-    if (!use) {
-      use = std::make_shared<const ClodBuilder>(mesh);
-      ++placements_;
-      if (keepBuilders_) builders_[h] = use;
-    }
-    if (!keepBuilders_) builders_.erase(h);
-    return use->build(distance);
-  };
-  auto set = cache_->getOrBuild(*mesh, h, distance, build, &out.cache);
+  dropUnusedLevels(mesh.get(), bits);
+  std::shared_ptr<const ClodSphereSet> set;
+  if (cache_) {
+    set = cache_->getOrBuild(*mesh, h, distance, [&] { return fetchOrBuild(mesh, h, distance, out); }, &out.cache);
+  } else {
+    const auto start = std::chrono::steady_clock::now();
+    set = std::make_shared<const ClodSphereSet>(fetchOrBuild(mesh, h, distance, out));
+    out.cache.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  }
   sets_[key] = {mesh, set};
   return set;
+}
+
+ClodSphereSet SceneAssets::fetchOrBuild(const std::shared_ptr<const TriangleMesh>& mesh, std::uint64_t hash,
+                                        double distance, LevelInfo& out) {
+  if (remote_) {
+    std::string why;
+    std::shared_ptr<const ClodSphereSet> fetched = remote_(*mesh, distance, why);
+    if (fetched) {
+      why = fitProblem(*mesh, *fetched);
+      if (why.empty()) {
+        out.remote = true;
+        return *fetched;
+      }
+      why = "the remote set does not fit the mesh: " + why;
+    }
+    out.remoteProblem = why;
+  }
+  std::shared_ptr<const ClodBuilder> use = builders_[hash];
+  if (!use) {
+    use = std::make_shared<const ClodBuilder>(mesh, std::make_shared<PaperPlacement>(), clustering_);
+    ++placements_;
+    if (keepBuilders_) builders_[hash] = use;
+  }
+  if (!keepBuilders_) builders_.erase(hash);
+  return use->build(distance);
+}
+
+void SceneAssets::dropUnusedLevels(const TriangleMesh* mesh, std::uint64_t keepDistanceBits) {
+  // Entries only this map holds, of the same mesh at another distance: nothing would share them again soon.
+  for (auto it = levels_.begin(); it != levels_.end();) {
+    const bool drop = it->first.first.first == mesh && it->first.first.second != keepDistanceBits &&
+                      it->second.use_count() == 1;
+    it = drop ? levels_.erase(it) : std::next(it);
+  }
+  for (auto it = sets_.begin(); it != sets_.end();) {
+    const bool drop = it->first.first == mesh && it->first.second != keepDistanceBits &&
+                      it->second.second.use_count() == 1;
+    it = drop ? sets_.erase(it) : std::next(it);
+  }
 }
 
 namespace {

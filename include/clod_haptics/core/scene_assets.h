@@ -1,12 +1,14 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <utility>
 
+#include "clod_haptics/core/clustering.h"
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/mesh_cache.h"
 #include "clod_haptics/core/mesh.h"
@@ -17,10 +19,13 @@
 namespace clod_haptics {
 
 /**
- * \brief Loads the meshes and CLOD levels of a scene, each at most once: a mesh used by several
- * objects (same file, same load options) is loaded once, a level (same mesh content, same clustering
- * distance) is read from the disk cache or built once and shared. Builders (the ray casts) are made
- * only on a cache miss. Thread-safe (one mutex; loads and builds run under it).
+ * \brief The one source of CLOD levels: loads the meshes and levels of a scene, each at most once. A mesh
+ * used by several objects (same file, same load options) is loaded once; a level (same mesh content, same
+ * clustering distance) comes from memory (another object or an earlier request still holds it), else the
+ * disk cache, else the remote source (setRemote: the ROS layer's sphere_builder service), else a build,
+ * and is shared. Builders (the ray casts) are made only when a level must be built. Levels nobody holds
+ * any more are dropped from memory when another distance of the same mesh is asked for, so changing the
+ * distance again and again does not accumulate levels. Thread-safe (one mutex; loads and builds run under it).
  */
 class SceneAssets {
  public:
@@ -29,15 +34,29 @@ class SceneAssets {
     CacheOutcome cache;        ///< disk cache outcome (source Hit when shared in memory too)
     bool shared = false;       ///< the level was already in memory (another object asked first)
     double detectorMs = 0.0;   ///< time to construct the ClodDetector
+    bool remote = false;       ///< the sphere set came from the remote source
+    std::string remoteProblem; ///< why the remote source gave no set (the level was then built here)
   };
 
   /**
-   * \brief Levels go through cache; detectors use fastLevel and gridRadius (the largest pointer
-   * radius the grid serves, see ClodDetector). keepBuilders keeps each mesh's ClodBuilder after a
-   * build so another level of that mesh only clusters; false frees the placement's memory.
+   * \brief Asks another process for the sphere set of (mesh, d): the set, or null with why filled in. Called
+   * on a disk-cache miss before building; a set that does not fit the mesh (fitProblem) is refused.
+   */
+  using RemoteSource = std::function<std::shared_ptr<const ClodSphereSet>(const TriangleMesh& mesh, double distance,
+                                                                          std::string& why)>;
+
+  /**
+   * \brief Levels go through cache (null: no disk cache); detectors use fastLevel and gridRadius (the
+   * largest pointer radius the grid serves, see ClodDetector). keepBuilders keeps each mesh's ClodBuilder
+   * after a build so another level of that mesh only clusters; false frees the placement's memory.
+   * clustering is the strategy of the builds (null: single-link); a cache holds the levels of one
+   * strategy, so give each strategy its own directory.
    */
   SceneAssets(std::shared_ptr<SphereSetCache> cache, FastLevel fastLevel = FastLevel::Grid, double gridRadius = 0.0,
-              bool keepBuilders = true);
+              bool keepBuilders = true, std::shared_ptr<const Clustering> clustering = nullptr);
+
+  /** \brief The source asked on a disk-cache miss before building (empty function: none). */
+  void setRemote(RemoteSource remote);
 
   /**
    * \brief Also keep loaded meshes in a disk cache (keyed by the source file's bytes and the load
@@ -92,7 +111,7 @@ class SceneAssets {
 
   /** \brief Number of ClodBuilder constructions (ray-cast placements) so far. */
   std::uint64_t placements() const { return placements_; }
-  /** \brief The disk cache. */
+  /** \brief The disk cache (may be null). */
   const std::shared_ptr<SphereSetCache>& cache() const { return cache_; }
   /** \brief The mesh cache (may be null). */
   const std::shared_ptr<MeshCache>& meshCache() const { return meshCache_; }
@@ -101,9 +120,14 @@ class SceneAssets {
   std::uint64_t hashLocked(const std::shared_ptr<const TriangleMesh>& mesh);
   std::shared_ptr<const ClodSphereSet> spheresLocked(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
                                                      LevelInfo& out);
+  ClodSphereSet fetchOrBuild(const std::shared_ptr<const TriangleMesh>& mesh, std::uint64_t hash, double distance,
+                             LevelInfo& out);
+  void dropUnusedLevels(const TriangleMesh* mesh, std::uint64_t keepDistanceBits);
 
   std::shared_ptr<SphereSetCache> cache_;
   std::shared_ptr<MeshCache> meshCache_;
+  std::shared_ptr<const Clustering> clustering_;
+  RemoteSource remote_;
   FastLevel fastLevel_;
   double gridRadius_;
   bool keepBuilders_;
