@@ -1,105 +1,53 @@
+// HapticDetector: parameters, start-up and the haptic path (the pose thread).
 #include "clod_haptics/ros/haptic_detector.h"
 
 #include <geometry_msgs/WrenchStamped.h>
 #include <tf2/exceptions.h>
-#include <visualization_msgs/MarkerArray.h>
 
 #include <pthread.h>
 #include <sched.h>
-#include <sys/resource.h>
-#include <sys/syscall.h>
-#include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
-#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <limits>
 
 #include "clod_haptics/Contact.h"
+#include "clod_haptics/ContactArray.h"
 #include "clod_haptics/DetectorStatus.h"
-#include "clod_haptics/GetSphereSet.h"
-#include "clod_haptics/core/brute_force.h"
-#include "clod_haptics/core/clustering.h"
 #include "clod_haptics/core/errors.h"
-#include "clod_haptics/core/mesh_loader.h"
+#include "clod_haptics/core/mesh_cache.h"
+#include "clod_haptics/core/sphere_cache.h"
 #include "clod_haptics/ros/conversions.h"
-#include "clod_haptics/ros/markers.h"
 #include "clod_haptics/ros/mesh_resource.h"
 
 namespace clod_haptics {
 
 namespace {
-double msSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
+const char* toString(PosePolicy policy) { return policy == PosePolicy::Latest ? "latest" : "all"; }
 
-// The level worker yields the CPU to the pose thread: on a 2-core machine a level build would otherwise take the
-// core the pose thread needs. Raising one's own nice value needs no privilege. Only a thread that shares no lock
-// with the pose thread may run lower: the display thread publishes, and roscpp holds one process-wide lock while
-// it serialises any message, so a preempted low-priority publisher would stall the pose thread's publish.
-void lowerThisThreadPriority(int nice) {
-  thread_local bool done = false;
-  if (done) return;
-  done = true;
-  // The manager may run real-time (clod_haptics.launch): back to the default scheduler first, which needs no
-  // privilege either.
-  sched_param normal{};
-  normal.sched_priority = 0;
-  pthread_setschedparam(pthread_self(), SCHED_OTHER, &normal);
-  const auto tid = static_cast<id_t>(::syscall(SYS_gettid));
-  if (::setpriority(PRIO_PROCESS, tid, nice) != 0) {
-    ROS_DEBUG("detector: could not lower a background thread's priority: %s", std::strerror(errno));
+/** The transform target <- source at stamp, or the latest one when stamp is newer than tf2 knows. */
+geometry_msgs::TransformStamped lookup(const tf2_ros::Buffer& buffer, const std::string& target,
+                                       const std::string& source, const ros::Time& stamp) {
+  try {
+    return buffer.lookupTransform(target, source, stamp);
+  } catch (const tf2::ExtrapolationException&) {
+    return buffer.lookupTransform(target, source, ros::Time(0));
   }
 }
 
-const char* toString(PosePolicy policy) { return policy == PosePolicy::Latest ? "latest" : "all"; }
+void requireFiniteNonNegative(double value, const std::string& name) {
+  if (!std::isfinite(value) || value < 0.0) throw InvalidParameter(name + " must be finite and >= 0");
+}
 }  // namespace
 
 HapticDetector::HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh), displayPnh_(pnh) {
   displayPnh_.setCallbackQueue(&displayQueue_);
   readParameters();
-
-  const std::string path = resolveMeshPath(meshUri_);
-  MeshLoadOptions options;
-  options.scale = scale_;
-  options.normalize = normalize_;
-  mesh_ = std::make_shared<const TriangleMesh>(loadMesh(path, options));
-  ROS_INFO("detector: loaded '%s' (%zu triangles) in frame '%s'; poses from %s", path.c_str(), mesh_->size(),
-           meshFrame_.c_str(), nh_.resolveName(poseTopic_).c_str());
-
-  poseNh_ = nh_;
-  poseNh_.setCallbackQueue(&poseQueue_);
-  contactPub_ = pnh_.advertise<Contact>("contact", static_cast<std::uint32_t>(publishQueueSize_));
-  forcePub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("force", static_cast<std::uint32_t>(publishQueueSize_));
-  statusPub_ = pnh_.advertise<DetectorStatus>("status", 1, true);
-  // A new marker subscriber gets the mesh and spheres again.
-  markerPub_ = displayPnh_.advertise<visualization_msgs::MarkerArray>(
-      "markers", 10,
-      [this](const ros::SingleSubscriberPublisher&) {
-        meshDirty_ = true;
-        spheresDirty_ = true;
-      },
-      ros::SubscriberStatusCallback());
-  tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_, nh_);
-
-  worker_ = std::thread(&HapticDetector::levelWorker, this);
-
-  // Calls onReconfigure with the ~ parameters (config/detector.yaml), which requests the first level.
-  reconfigure_ = std::make_unique<dynamic_reconfigure::Server<DetectorConfig>>(configMutex_, displayPnh_);
-  reconfigure_->setCallback([this](DetectorConfig& config, std::uint32_t level) { onReconfigure(config, level); });
-
-  poseSub_ = poseNh_.subscribe(poseTopic_, static_cast<std::uint32_t>(poseQueueSize_), &HapticDetector::onPose, this,
-                               ros::TransportHints().tcpNoDelay());
-  poseThread_ = std::thread(&HapticDetector::poseLoop, this);
-  ROS_INFO("detector: pose policy '%s', pose queue %d, publish queue %d", toString(posePolicy_), poseQueueSize_,
-           publishQueueSize_);
-  displayTimer_ =
-      displayPnh_.createSteadyTimer(ros::WallDuration(1.0 / markerRate_), &HapticDetector::onDisplayTimer, this);
-  statusTimer_ = displayPnh_.createSteadyTimer(ros::WallDuration(1.0), &HapticDetector::onStatusTimer, this);
-  displaySpinner_ = std::make_unique<ros::AsyncSpinner>(1, &displayQueue_);
-  displaySpinner_->start();
-  publishStatus();
+  loadObjects();
+  advertise();
+  startThreads();
 }
 
 HapticDetector::~HapticDetector() {
@@ -118,80 +66,210 @@ HapticDetector::~HapticDetector() {
 }
 
 void HapticDetector::readParameters() {
-  if (!pnh_.getParam("mesh", meshUri_) || meshUri_.empty()) {
-    throw MeshLoadError(
-        "", "required parameter " + pnh_.resolveName("mesh") + " is not set (a mesh path or a package:// URI)");
+  DetectorParameters& p = params_;
+  XmlRpc::XmlRpcValue scene;
+  const bool haveScene = pnh_.getParam("scene", scene);
+  const bool haveMesh = pnh_.getParam("mesh", p.mesh) && !p.mesh.empty();
+  if (!haveScene && !haveMesh) {
+    throw MeshLoadError("", "required parameter " + pnh_.resolveName("mesh") + " (a mesh path or package:// URI) or " +
+                                pnh_.resolveName("scene") +
+                                " (a scene file: <rosparam file=\"scene.yaml\" ns=\"scene\"/>) is not set");
   }
-  pnh_.param<std::string>("frame_id", meshFrame_, "world");
-  pnh_.param<std::string>("pose_topic", poseTopic_, "/phantom/pose");
-  pnh_.param<std::string>("sphere_service", serviceName_, "sphere_builder/get_sphere_set");
-  pnh_.param("scale", scale_, 1.0);
-  pnh_.param("normalize", normalize_, false);
-  pnh_.param("use_service", useService_, true);
-  pnh_.param("service_timeout", serviceTimeout_, 5.0);
-  pnh_.param("pose_queue_size", poseQueueSize_, 5000);
-  pnh_.param("publish_queue_size", publishQueueSize_, 5000);
-  pnh_.param("realtime_priority", realtimePriority_, 0);
-  std::string policy;
-  pnh_.param<std::string>("pose_policy", policy, "all");
-  if (policy == "all") {
-    posePolicy_ = PosePolicy::All;
-  } else if (policy == "latest") {
-    posePolicy_ = PosePolicy::Latest;
+  pnh_.param("frame_id", p.frameId, p.frameId);
+  pnh_.param("scale", p.scale, p.scale);
+  pnh_.param("normalize", p.normalize, p.normalize);
+  pnh_.param("pose_topic", p.poseTopic, p.poseTopic);
+  pnh_.param("sphere_service", p.sphereService, p.sphereService);
+  pnh_.param("use_service", p.useService, haveMesh && !haveScene);
+  pnh_.param("service_timeout", p.serviceTimeout, p.serviceTimeout);
+  pnh_.param("use_cache", p.useCache, p.useCache);
+  pnh_.param("cache_dir", p.cacheDir, p.cacheDir);
+  pnh_.param("cache_meshes", p.cacheMeshes, p.cacheMeshes);
+  pnh_.param("clustering", p.clustering, p.clustering);
+  pnh_.param("grid_radius", p.gridRadius, p.gridRadius);
+  pnh_.param("pose_queue_size", p.poseQueueSize, p.poseQueueSize);
+  pnh_.param("publish_queue_size", p.publishQueueSize, p.publishQueueSize);
+  pnh_.param("realtime_priority", p.realtimePriority, p.realtimePriority);
+  pnh_.param("marker_rate", p.markerRate, p.markerRate);
+  pnh_.param("static_retry", p.staticRetry, p.staticRetry);
+  pnh_.param("prefetch_margin", p.prefetchMargin, p.prefetchMargin);
+  pnh_.param("quick_start", p.quickStart, p.quickStart);
+  pnh_.param("grid_on_demand", p.gridOnDemand, p.gridOnDemand);
+  pnh_.param("detectors_on_demand", p.detectorsOnDemand, p.detectorsOnDemand);
+  std::string policy = toString(p.posePolicy), fast = "grid";
+  pnh_.param("pose_policy", policy, policy);
+  pnh_.param("fast_level", fast, fast);
+
+  if (policy == "all" || policy == "latest") {
+    p.posePolicy = policy == "all" ? PosePolicy::All : PosePolicy::Latest;
   } else {
     throw InvalidParameter("~pose_policy must be all (answer every pose) or latest (skip a pose a newer one waits "
                            "behind), not '" + policy + "'");
   }
-  if (realtimePriority_ < 0 || realtimePriority_ > 99) throw InvalidParameter("~realtime_priority must be in 0..99");
-  pnh_.param("marker_rate", markerRate_, 30.0);
-  std::string fast;
-  pnh_.param<std::string>("fast_level", fast, "grid");
-  pnh_.param("grid_radius", gridRadius_, 0.0);
-  if (!std::isfinite(scale_) || scale_ <= 0.0) throw InvalidParameter("~scale must be finite and positive");
-  if (!parseFastLevel(fast.c_str(), fastLevel_)) {
+  if (!parseFastLevel(fast.c_str(), p.fastLevel)) {
     throw InvalidParameter("~fast_level must be grid, hierarchy or flat, not '" + fast + "'");
   }
-  if (!std::isfinite(gridRadius_) || gridRadius_ < 0.0) throw InvalidParameter("~grid_radius must be >= 0");
-  std::string clustering;
-  pnh_.param<std::string>("clustering", clustering, "single-link");
-  clustering_ = requireClustering(clustering, pnh_.resolveName("clustering"));
-  if (!(markerRate_ > 0.0) || markerRate_ > 200.0) throw InvalidParameter("~marker_rate must be in (0, 200] Hz");
-  if (poseQueueSize_ < 1) throw InvalidParameter("~pose_queue_size must be at least 1");
-  if (publishQueueSize_ < 1) throw InvalidParameter("~publish_queue_size must be at least 1");
+  if (!std::isfinite(p.scale) || p.scale <= 0.0) throw InvalidParameter("~scale must be finite and positive");
+  if (p.realtimePriority < 0 || p.realtimePriority > 99) throw InvalidParameter("~realtime_priority must be in 0..99");
+  if (!(p.markerRate > 0.0) || p.markerRate > 200.0) throw InvalidParameter("~marker_rate must be in (0, 200] Hz");
+  if (!(p.staticRetry > 0.0)) throw InvalidParameter("~static_retry must be positive");
+  if (p.poseQueueSize < 1) throw InvalidParameter("~pose_queue_size must be at least 1");
+  if (p.publishQueueSize < 1) throw InvalidParameter("~publish_queue_size must be at least 1");
+  requireFiniteNonNegative(p.gridRadius, "~grid_radius");
+  requireFiniteNonNegative(p.prefetchMargin, "~prefetch_margin");
+  requireClustering(p.clustering, pnh_.resolveName("clustering"));
   std::string mode;
-  if (pnh_.getParam("detection_mode", mode)) {
-    DetectionMode parsed;
-    if (!parseDetectionMode(mode.c_str(), parsed)) {
-      throw InvalidParameter("~detection_mode must be exact, paper or spheres, not '" + mode + "'");
-    }
+  DetectionMode parsed;
+  if (pnh_.getParam("detection_mode", mode) && !parseDetectionMode(mode.c_str(), parsed)) {
+    throw InvalidParameter("~detection_mode must be exact, paper or spheres, not '" + mode + "'");
   }
+
+  if (haveScene) {
+    double defaultDistance = DetectorConfig::__getDefault__().clustering_distance;
+    pnh_.param("default_distance", defaultDistance, defaultDistance);
+    config_ = parseSceneConfig(scene, defaultDistance);
+    return;
+  }
+  singleMesh_ = true;  // a scene of one: the mesh in ~frame_id at the distance dynamic_reconfigure asks for
+  SceneObjectConfig object;
+  object.name = p.mesh.substr(p.mesh.find_last_of('/') + 1);
+  object.mesh = p.mesh;
+  object.frameId = p.frameId;
+  object.scale = p.scale;
+  pnh_.param("clustering_distance", object.distance, DetectorConfig::__getDefault__().clustering_distance);
+  config_.frameId = p.frameId;
+  config_.objects.push_back(object);
+}
+
+void HapticDetector::loadObjects() {
+  const DetectorParameters& p = params_;
+  std::shared_ptr<SphereSetCache> cache;
+  if (p.useCache) {
+    // A cache holds the levels of one clustering strategy: the others get a directory of their own.
+    const std::string base = p.cacheDir.empty() ? defaultSphereCacheDirectory() : p.cacheDir;
+    cache = std::make_shared<SphereSetCache>(p.clustering == "single-link" ? base : base + "/" + p.clustering);
+  }
+  // A scene's grids serve the pointer radius it starts with; a single mesh's, 1% of its size unless told.
+  double gridRadius = p.gridRadius;
+  if (gridRadius == 0.0 && !singleMesh_) pnh_.param("pointer_radius", gridRadius, radius_.load());
+  assets_ = std::make_unique<SceneAssets>(cache, p.fastLevel, gridRadius, true, makeClustering(p.clustering));
+  if (p.useCache && p.cacheMeshes) assets_->setMeshCache(std::make_shared<MeshCache>(p.cacheDir));
+  if (p.useService) {
+    assets_->setRemote([this](const TriangleMesh& mesh, double d, std::string& why) {
+      return fetchFromService(mesh, d, why);
+    });
+  }
+  const auto start = std::chrono::steady_clock::now();
+  std::size_t triangles = 0;
+  std::vector<DisplayObject, Eigen::aligned_allocator<DisplayObject>> drawn;
+  std::vector<std::string> only;
+  pnh_.getParam("marker_objects", only);
+  for (const SceneObjectConfig& object : config_.objects) {
+    ObjectState state;
+    state.config = object;
+    state.meshPath = resolveMeshPath(object.mesh);
+    MeshLoadOptions options;
+    options.scale = object.scale;
+    options.normalize = singleMesh_ && p.normalize;
+    SceneAssets::MeshInfo info;
+    auto mesh = assets_->mesh(state.meshPath, options, &info);  // shared when several objects use one file
+    if (!info.cache.problem.empty()) ROS_WARN("detector: '%s': %s", object.name.c_str(), info.cache.problem.c_str());
+    triangles += mesh->size();
+    state.viaTf = object.frameId != config_.frameId;
+    state.poseKnown = !state.viaTf;
+    const auto index = scene_.addObject(object.name, mesh, nullptr, object.offset);
+    scene_.setActive(index, state.poseKnown);
+    objects_.push_back(state);
+
+    DisplayObject d;
+    d.name = object.name;
+    d.frameId = object.frameId;
+    d.offset = object.offset;
+    d.meshResource = object.mesh.rfind("package://", 0) == 0 ? object.mesh : "file://" + state.meshPath;
+    d.scale = object.scale;
+    d.mesh = mesh;
+    d.drawn = only.empty() || std::find(only.begin(), only.end(), object.name) != only.end();
+    drawn.push_back(d);
+  }
+  const std::size_t n = objects_.size();
+  contacts_.resize(n);
+  caches_.resize(n);
+  last_.contacts.reserve(n);
+  last_.near.resize(n);
+  last_.poses.resize(n);
+  wanted_ = std::make_unique<std::atomic<bool>[]>(n);
+  for (std::size_t i = 0; i < n; ++i) wanted_[i] = false;
+  display_ = std::make_unique<DetectorDisplay>(config_.frameId, std::move(drawn), singleMesh_);
+  ROS_INFO("detector: %zu object%s (%zu triangles) loaded in %.0f ms in frame '%s'; poses from %s; levels from %s%s"
+           "a local build",
+           n, n == 1 ? "" : "s", triangles,
+           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
+           config_.frameId.c_str(), nh_.resolveName(p.poseTopic).c_str(),
+           cache ? ("the cache " + cache->directory() + ", ").c_str() : "",
+           p.useService ? ("the service " + nh_.resolveName(p.sphereService) + ", ").c_str() : "");
+}
+
+void HapticDetector::advertise() {
+  const auto queue = static_cast<std::uint32_t>(params_.publishQueueSize);
+  contactPub_ = pnh_.advertise<Contact>("contact", queue);
+  contactsPub_ = pnh_.advertise<ContactArray>("contacts", queue);
+  forcePub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("force", queue);
+  statusPub_ = pnh_.advertise<DetectorStatus>("status", 1, true);
+  // A new marker subscriber gets the meshes and levels once; afterwards only what changes.
+  markerPub_ = displayPnh_.advertise<visualization_msgs::MarkerArray>(
+      "markers", 10,
+      [this](const ros::SingleSubscriberPublisher&) { display_->invalidate(); },  // on the display thread
+      ros::SubscriberStatusCallback());
+  tfListener_ = std::make_unique<tf2_ros::TransformListener>(tfBuffer_, nh_);
+}
+
+void HapticDetector::startThreads() {
+  worker_ = std::thread(&HapticDetector::levelWorker, this);
+  // Calls onReconfigure with the ~ parameters (config/detector.yaml), which sets the first distance.
+  reconfigure_ = std::make_unique<dynamic_reconfigure::Server<DetectorConfig>>(configMutex_, displayPnh_);
+  reconfigure_->setCallback([this](DetectorConfig& config, std::uint32_t level) { onReconfigure(config, level); });
+
+  poseNh_ = nh_;
+  poseNh_.setCallbackQueue(&poseQueue_);
+  poseSub_ = poseNh_.subscribe(params_.poseTopic, static_cast<std::uint32_t>(params_.poseQueueSize),
+                               &HapticDetector::onPose, this, ros::TransportHints().tcpNoDelay());
+  poseThread_ = std::thread(&HapticDetector::poseLoop, this);
+  ROS_INFO("detector: pose policy '%s', pose queue %d, publish queue %d", toString(params_.posePolicy),
+           params_.poseQueueSize, params_.publishQueueSize);
+  displayTimer_ = displayPnh_.createSteadyTimer(ros::WallDuration(1.0 / params_.markerRate),
+                                                &HapticDetector::onDisplayTimer, this);
+  statusTimer_ = displayPnh_.createSteadyTimer(ros::WallDuration(1.0), &HapticDetector::onStatusTimer, this);
+  displaySpinner_ = std::make_unique<ros::AsyncSpinner>(1, &displayQueue_);
+  displaySpinner_->start();
+  publishStatus();
 }
 
 // ------------------------------------------------------------------------------------------------
-// The haptic path.
+// The haptic path: the pose thread alone touches the scene.
 
 void HapticDetector::poseLoop() {
-  if (realtimePriority_ > 0) {
+  const int priority = params_.realtimePriority;
+  if (priority > 0) {
     sched_param param{};
-    param.sched_priority = realtimePriority_;
+    param.sched_priority = priority;
     const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
     if (err != 0) {
-      // Not a warning: most desktops allow no real-time priority, and the detector works without it (its tail
-      // latency then depends on what else runs; see the README).
+      // Not a warning: most desktops allow no real-time priority, and the detector works without it.
       ROS_INFO("detector: ~realtime_priority %d not granted (%s): the pose thread stays on the default "
                "scheduler; allow it with 'ulimit -r %d' or an rtprio line in /etc/security/limits.conf",
-               realtimePriority_, std::strerror(err), realtimePriority_);
+               priority, std::strerror(err), priority);
     } else {
-      ROS_INFO("detector: pose thread at SCHED_FIFO priority %d", realtimePriority_);
+      ROS_INFO("detector: pose thread at SCHED_FIFO priority %d", priority);
     }
   }
   while (!poseStop_.load(std::memory_order_relaxed)) {
-    if (posePolicy_ == PosePolicy::All) {
+    adoptPublishedLevels();  // also when no pose comes: a new level is in use within 50 ms
+    if (params_.posePolicy == PosePolicy::All) {
       poseQueue_.callOne(ros::WallDuration(0.05));  // every pose, in order
       continue;
     }
-    // Latest: take every pose that arrived while the last one was answered (onPose keeps the newest, counting the
-    // others as skipped), then answer that one.
+    // Latest: take every pose that arrived while the last one was answered (onPose keeps the newest, counting
+    // the others as skipped), then answer that one.
     poseQueue_.callAvailable(ros::WallDuration(0.05));
     if (!newestValid_) continue;
     newestValid_ = false;
@@ -207,14 +285,11 @@ void HapticDetector::countSequence(const ros::MessageEvent<const geometry_msgs::
     haveSeq_ = false;
     return;
   }
-  const bool samePublisher = haveSeq_ && publisher == lastPublisher_;
-  if (samePublisher) {
+  if (haveSeq_ && publisher == lastPublisher_) {
     const std::uint32_t step = seq - lastSeq_;  // modulo 2^32: a wrapped counter still steps by 1
     // A step back (a restarted publisher, a replay looping) starts counting again; a step forward by k > 1
     // means k - 1 poses were published that never reached this callback.
-    if (step > 1u && step < (1u << 31)) {
-      lostUpstream_.fetch_add(step - 1u, std::memory_order_relaxed);
-    }
+    if (step > 1u && step < (1u << 31)) lostUpstream_.fetch_add(step - 1u, std::memory_order_relaxed);
   } else {
     lastPublisher_ = publisher;  // allocates only when the publisher changes
   }
@@ -225,7 +300,7 @@ void HapticDetector::countSequence(const ros::MessageEvent<const geometry_msgs::
 void HapticDetector::onPose(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event) {
   received_.fetch_add(1, std::memory_order_relaxed);
   countSequence(event);
-  if (posePolicy_ == PosePolicy::All) {
+  if (params_.posePolicy == PosePolicy::All) {
     answer(event);
     return;
   }
@@ -235,367 +310,189 @@ void HapticDetector::onPose(const ros::MessageEvent<const geometry_msgs::PoseSta
   newestValid_ = true;
 }
 
-void HapticDetector::answer(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event) {
-  const geometry_msgs::PoseStampedConstPtr& msg = event.getConstMessage();
-  if (!isFinite(msg->pose)) {
+bool HapticDetector::pointerInSceneFrame(const geometry_msgs::PoseStamped& msg, Vec3& p,
+                                         Eigen::Isometry3d& sceneFromPose) {
+  if (!isFinite(msg.pose)) {
     droppedNonFinite_.fetch_add(1, std::memory_order_relaxed);
     ROS_WARN_THROTTLE(1.0, "detector: dropped a pose with a NaN or Inf component (%lu so far)",
                       static_cast<unsigned long>(droppedNonFinite_.load()));
-    return;
+    return false;
   }
-  const auto& position = msg->pose.position;
-  Vec3 p(position.x, position.y, position.z);
-  const std::string& poseFrame = msg->header.frame_id;
-  const bool transformed = !poseFrame.empty() && poseFrame != meshFrame_;
-  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
-  if (transformed) {
-    geometry_msgs::TransformStamped tf;
+  p = Vec3(msg.pose.position.x, msg.pose.position.y, msg.pose.position.z);
+  sceneFromPose.setIdentity();
+  const std::string& frame = msg.header.frame_id;
+  if (frame.empty() || frame == config_.frameId) return true;
+  try {
+    sceneFromPose = toIsometry(lookup(tfBuffer_, config_.frameId, frame, msg.header.stamp).transform);
+  } catch (const tf2::TransformException& e) {
+    droppedFrame_.fetch_add(1, std::memory_order_relaxed);
+    ROS_WARN_THROTTLE(1.0, "detector: dropped a pose in frame '%s': %s (%lu so far)", frame.c_str(), e.what(),
+                      static_cast<unsigned long>(droppedFrame_.load()));
+    return false;
+  }
+  p = sceneFromPose * p;
+  // A huge but finite pose (1e308) can overflow to Inf when transformed: not a position either.
+  if (p.allFinite()) return true;
+  droppedNonFinite_.fetch_add(1, std::memory_order_relaxed);
+  ROS_WARN_THROTTLE(1.0, "detector: dropped a pose in frame '%s' that is not finite in frame '%s' (%lu so far)",
+                    frame.c_str(), config_.frameId.c_str(), static_cast<unsigned long>(droppedNonFinite_.load()));
+  return false;
+}
+
+void HapticDetector::updateObjectPoses(const ros::Time& stamp) {
+  for (std::uint32_t i = 0; i < objects_.size(); ++i) {
+    ObjectState& o = objects_[i];
+    if (!o.viaTf || (o.poseKnown && !o.config.moving)) continue;
+    const ros::WallTime now = ros::WallTime::now();
+    if (!o.config.moving && now < o.nextRetry) continue;  // a static frame tf2 did not know: retried now and then
     try {
-      try {
-        tf = tfBuffer_.lookupTransform(meshFrame_, poseFrame, msg->header.stamp);
-      } catch (const tf2::ExtrapolationException&) {
-        tf = tfBuffer_.lookupTransform(meshFrame_, poseFrame, ros::Time(0));  // latest known
+      const auto tf = lookup(tfBuffer_, config_.frameId, o.config.frameId, o.config.moving ? stamp : ros::Time(0));
+      scene_.setPose(i, toIsometry(tf.transform) * o.config.offset);
+      scene_.setActive(i, true);
+      if (!o.poseKnown && !o.config.moving) {
+        ROS_INFO("detector: '%s' placed in static frame '%s'", o.config.name.c_str(), o.config.frameId.c_str());
       }
-    } catch (const tf2::TransformException& e) {
-      droppedFrame_.fetch_add(1, std::memory_order_relaxed);
-      ROS_WARN_THROTTLE(1.0, "detector: dropped a pose in frame '%s': %s (%lu so far)", poseFrame.c_str(), e.what(),
-                        static_cast<unsigned long>(droppedFrame_.load()));
-      return;
-    }
-    const auto& q = tf.transform.rotation;
-    const auto& t = tf.transform.translation;
-    rotation = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized();
-    p = rotation * p + Vec3(t.x, t.y, t.z);
-    // A huge but finite pose (1e308) can overflow to Inf when rotated: not a position either.
-    if (!p.allFinite()) {
-      droppedNonFinite_.fetch_add(1, std::memory_order_relaxed);
-      ROS_WARN_THROTTLE(1.0, "detector: dropped a pose in frame '%s' that is not finite in frame '%s' (%lu so far)",
-                        poseFrame.c_str(), meshFrame_.c_str(), static_cast<unsigned long>(droppedNonFinite_.load()));
-      return;
+      o.poseKnown = true;
+    } catch (const std::exception& e) {  // tf2 errors, or a non-rigid transform
+      scene_.setActive(i, false);
+      o.poseKnown = false;
+      o.nextRetry = now + ros::WallDuration(params_.staticRetry);
+      ROS_WARN_THROTTLE(2.0, "detector: '%s' skipped: %s frame '%s': %s", o.config.name.c_str(),
+                        o.config.moving ? "moving" : "static", o.config.frameId.c_str(), e.what());
     }
   }
+}
+
+void HapticDetector::adoptPublishedLevels() {
+  const Levels* levels = published_.load(std::memory_order_acquire);
+  if (!levels || levels->id == adoptedId_) return;
+  for (std::uint32_t i = 0; i < levels->detectors.size(); ++i) {
+    // Never the last reference: the snapshot that held the replaced level is freed by the display thread.
+    if (scene_.detector(i) != levels->detectors[i]) scene_.setDetector(i, levels->detectors[i]);
+  }
+  adoptedId_ = levels->id;
+  adopted_.store(adoptedId_, std::memory_order_release);
+}
+
+void HapticDetector::askForNearLevels(const Vec3& p) {
+  const double reachOut = radius_.load(std::memory_order_relaxed) + params_.prefetchMargin;
+  for (std::uint32_t i = 0; i < scene_.size(); ++i) {
+    const auto& level = scene_.detector(i);
+    if ((level && level->fastLevel() == params_.fastLevel) || wanted_[i].load(std::memory_order_relaxed)) continue;
+    const double reach = scene_.boundRadius(i) + reachOut;
+    if ((scene_.boundCentre(i) - p).squaredNorm() <= reach * reach) {
+      wanted_[i].store(true, std::memory_order_relaxed);
+      workerCv_.notify_one();
+    }
+  }
+}
+
+void HapticDetector::answer(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event) {
+  const geometry_msgs::PoseStamped& msg = *event.getConstMessage();
+  Vec3 p;
+  Eigen::Isometry3d sceneFromPose;
+  if (!pointerInSceneFrame(msg, p, sceneFromPose)) return;
+  updateObjectPoses(msg.header.stamp);
+  adoptPublishedLevels();
+  askForNearLevels(p);
 
   const double radius = radius_.load(std::memory_order_relaxed);
   const auto mode = static_cast<DetectionMode>(mode_.load(std::memory_order_relaxed));
-  // Inside: the worker will not free the level read below until this callback has returned.
-  poseEpoch_.fetch_add(1, std::memory_order_seq_cst);
-  struct Leave {
-    std::atomic<std::uint64_t>& epoch;
-    ~Leave() { epoch.fetch_add(1, std::memory_order_release); }
-  } leave{poseEpoch_};
-  const Level* level = poseLevel_.load(std::memory_order_seq_cst);
-
-  ContactResult result;
+  SceneQueryResult out;
   const auto start = std::chrono::steady_clock::now();
-  if (level) {
-    level->detector->query(p, radius, mode, result, &queryCache_);  // one stream: this callback
-  } else {
-    result = bruteForceQuery(*mesh_, p, radius);  // no level yet: the reference answers
-    bruteForce_.fetch_add(1, std::memory_order_relaxed);
-  }
+  scene_.query(p, radius, mode, contacts_.data(), contacts_.size(), out, caches_.data());
   const auto elapsed = std::chrono::steady_clock::now() - start;
+  if (out.bruteForce > 0) bruteForce_.fetch_add(1, std::memory_order_relaxed);
+  publishAnswer(msg, p, radius, sceneFromPose, out,
+                std::chrono::duration_cast<std::chrono::nanoseconds>(elapsed).count());
+  if (!ros::Time::isSimTime()) posePath_.record((ros::Time::now() - event.getReceiptTime()).toNSec());
+  if (markersWanted_.load(std::memory_order_relaxed)) keepForDisplay(p, radius, out.contacts);
+}
 
+void HapticDetector::publishAnswer(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius,
+                                   const Eigen::Isometry3d& sceneFromPose, const SceneQueryResult& out,
+                                   std::int64_t detectionNs) {
+  std_msgs::Header header;
+  header.stamp = msg.header.stamp;
+  header.frame_id = config_.frameId;
+  // Consecutive numbers: a subscriber that sees a gap knows an answer was lost on the way to it.
+  header.seq = static_cast<std::uint32_t>(answered_.load(std::memory_order_relaxed) + 1);
+  ros::Duration detectionTime;
+  detectionTime.fromNSec(detectionNs);
+
+  auto array = boost::make_shared<ContactArray>();
+  array->header = header;
+  array->pointer = toPoint(p);
+  array->pointer_radius = radius;
+  array->in_contact = out.contact;
+  array->contacts.resize(out.contacts);
+  array->objects.resize(out.contacts);
+  array->object_indices.resize(out.contacts);
+  for (std::uint32_t k = 0; k < out.contacts; ++k) {
+    const SceneContact& c = contacts_[k];
+    Contact& m = array->contacts[k];
+    m.header = header;
+    toMsg(c.local, p, radius, m);
+    m.point = toPoint(c.point);  // scene frame
+    m.normal = toVector3(c.normal);
+    m.detection_time = detectionTime;
+    const auto& level = scene_.detector(c.object);
+    m.clustering_distance = level ? level->spheres()->distance : std::numeric_limits<double>::quiet_NaN();
+    m.level_spheres = level ? static_cast<std::uint32_t>(level->spheres()->size()) : 0;
+    array->objects[k] = objects_[c.object].config.name;
+    array->object_indices[k] = c.object;
+  }
+  const Vec3 force = penaltyForce(out.penetration, stiffness_.load(std::memory_order_relaxed),
+                                  maxForce_.load(std::memory_order_relaxed));
+  array->penetration = toVector3(out.penetration);
+  array->max_depth = out.maxDepth;
+  array->deepest = out.deepest;
+  array->force = toVector3(force);
+  array->objects_queried = out.objectsQueried;
+  array->objects_rejected = out.objectsRejected;
+  array->objects_without_pose = out.objectsInactive;
+  array->objects_brute_force = out.bruteForce;
+  array->detection_time = detectionTime;
+
+  // ~contact: the deepest contact; without one, the pointer and the level of the first object.
   auto contact = boost::make_shared<Contact>();
-  contact->header.stamp = msg->header.stamp;
-  contact->header.frame_id = meshFrame_;
-  toMsg(result, p, radius, *contact);
-  contact->detection_time.fromNSec(std::chrono::duration_cast<std::chrono::nanoseconds>(elapsed).count());
-  contact->clustering_distance = level ? level->distance : std::numeric_limits<double>::quiet_NaN();
-  contact->level_spheres = level ? level->spheres : 0;
+  if (out.deepest >= 0) {
+    *contact = array->contacts[static_cast<std::size_t>(out.deepest)];
+  } else {
+    toMsg(ContactResult(), p, radius, *contact);
+    contact->header = header;
+    contact->detection_time = detectionTime;
+    const auto& level = scene_.detector(0);
+    contact->clustering_distance = level ? level->spheres()->distance : std::numeric_limits<double>::quiet_NaN();
+    contact->level_spheres = level ? static_cast<std::uint32_t>(level->spheres()->size()) : 0;
+  }
 
   // The force in the pose's frame, where the device renders it.
-  const Vec3 forceMesh =
-      penaltyForce(result, stiffness_.load(std::memory_order_relaxed), maxForce_.load(std::memory_order_relaxed));
   auto wrench = boost::make_shared<geometry_msgs::WrenchStamped>();
-  wrench->header.stamp = msg->header.stamp;
-  wrench->header.frame_id = poseFrame.empty() ? meshFrame_ : poseFrame;
-  toMsg(transformed ? Vec3(rotation.conjugate() * forceMesh) : forceMesh, wrench->wrench);
+  wrench->header = header;
+  if (!msg.header.frame_id.empty()) wrench->header.frame_id = msg.header.frame_id;
+  toMsg(Vec3(sceneFromPose.linear().transpose() * force), wrench->wrench);
 
-  // Consecutive numbers: a subscriber that sees a gap knows an answer was lost on the way to it.
-  const auto answer = static_cast<std::uint32_t>(published_.load(std::memory_order_relaxed) + 1);
-  contact->header.seq = answer;
-  wrench->header.seq = answer;
   contactPub_.publish(contact);
+  contactsPub_.publish(array);
   forcePub_.publish(wrench);
-  published_.fetch_add(1, std::memory_order_relaxed);
-  if (!ros::Time::isSimTime()) posePath_.record((ros::Time::now() - event.getReceiptTime()).toNSec());
+  answered_.fetch_add(1, std::memory_order_relaxed);
+}
 
-  if (!markersWanted_.load(std::memory_order_relaxed)) return;
+void HapticDetector::keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts) {
   // For the markers only: if the display thread is copying it right now, this pose is not drawn rather than
-  // waiting for a thread of lower priority.
+  // waiting for a thread of lower priority. Capacities were reserved at start-up: nothing allocates here.
   std::unique_lock<std::mutex> lock(lastMutex_, std::try_to_lock);
   if (!lock.owns_lock()) return;
-  last_.valid = true;
+  ++last_.seq;
   last_.pointer = p;
   last_.radius = radius;
-  last_.result = result;
-}
-
-// ------------------------------------------------------------------------------------------------
-// Reconfigure and levels.
-
-void HapticDetector::onReconfigure(DetectorConfig& config, std::uint32_t /*level*/) {
-  // dynamic_reconfigure clamps values to the ranges of cfg/Detector.cfg, but NaN passes every clamp
-  // (comparisons with NaN are false): a NaN radius would answer "no contact" to every pose, a NaN
-  // distance would ask for a level nobody can build. Keep the current value; the client gets it back.
-  auto keepFinite = [](double& value, double current, const char* name) {
-    if (std::isfinite(value)) return;
-    ROS_WARN("detector: %s must be a finite number, not %g; keeping %g", name, value, current);
-    value = current;
-  };
-  keepFinite(config.clustering_distance, requestedDistance_.load(), "clustering_distance");
-  keepFinite(config.pointer_radius, radius_.load(), "pointer_radius");
-  keepFinite(config.stiffness, stiffness_.load(), "stiffness");
-  keepFinite(config.max_force, maxForce_.load(), "max_force");
-  DetectionMode mode;
-  if (parseDetectionMode(config.detection_mode.c_str(), mode)) {
-    mode_ = static_cast<int>(mode);
-  } else {
-    ROS_WARN("detector: unknown detection_mode '%s' (exact, paper or spheres); keeping %s",
-             config.detection_mode.c_str(), toString(static_cast<DetectionMode>(mode_.load())));
-    config.detection_mode = toString(static_cast<DetectionMode>(mode_.load()));
+  last_.contacts.assign(contacts_.begin(), contacts_.begin() + contacts);
+  for (std::uint32_t i = 0; i < scene_.size(); ++i) {
+    last_.poses[i] = scene_.pose(i);
+    const double reach = scene_.boundRadius(i) + radius;
+    last_.near[i] = scene_.active(i) && (scene_.boundCentre(i) - p).squaredNorm() <= reach * reach;
   }
-  radius_ = config.pointer_radius;
-  stiffness_ = config.stiffness;
-  maxForce_ = config.max_force;
-  showMesh_ = config.show_mesh;
-  showSpheres_ = config.show_spheres;
-  showHit_ = config.show_hit_spheres;
-  showContact_ = config.show_contact;
-  showPointer_ = config.show_pointer;
-  if (config.show_mesh != shownMesh_) meshDirty_ = true;
-  if (config.show_spheres != shownSpheresOn_) spheresDirty_ = true;
-  requestLevel(config.clustering_distance);
-}
-
-void HapticDetector::requestLevel(double distance) {
-  requestedDistance_ = distance;
-  {
-    std::lock_guard<std::mutex> lock(workerMutex_);
-    pendingDistance_ = distance;
-    pending_ = true;
-  }
-  workerCv_.notify_all();
-}
-
-std::shared_ptr<const HapticDetector::Level> HapticDetector::currentLevel() {
-  std::lock_guard<std::mutex> lock(levelMutex_);
-  return level_;
-}
-
-void HapticDetector::waitUntilThePoseThreadLetsGo() {
-  // poseLevel_ was stored before this load (both sequentially consistent): a callback that starts after it
-  // reads the new level; one that was inside (odd epoch) may hold the old one until the epoch moves on.
-  const std::uint64_t epoch = poseEpoch_.load(std::memory_order_seq_cst);
-  if ((epoch & 1u) == 0u) return;
-  while (poseEpoch_.load(std::memory_order_acquire) == epoch && !poseStop_.load(std::memory_order_relaxed)) {
-    std::this_thread::sleep_for(std::chrono::microseconds(50));
-  }
-}
-
-void HapticDetector::levelWorker() {
-  lowerThisThreadPriority(10);
-  for (;;) {
-    double distance;
-    {
-      std::unique_lock<std::mutex> lock(workerMutex_);
-      workerCv_.wait(lock, [this] { return stop_ || pending_; });
-      if (stop_) return;
-      distance = pendingDistance_;
-      pending_ = false;
-    }
-    const auto current = currentLevel();
-    if (current && current->distance == distance) continue;
-    try {
-      std::shared_ptr<const Level> level = makeLevel(distance);
-      std::shared_ptr<const Level> old;
-      {
-        std::lock_guard<std::mutex> lock(levelMutex_);
-        old = std::move(level_);
-        level_ = level;
-      }
-      poseLevel_.store(level.get(), std::memory_order_seq_cst);
-      waitUntilThePoseThreadLetsGo();
-      swaps_.fetch_add(1, std::memory_order_relaxed);
-      spheresDirty_ = true;
-      ROS_INFO("detector: level d = %g with %u spheres in use (%s, %.1f ms)", level->distance, level->spheres,
-               level->source.c_str(), level->readyMs);
-      statusDirty_ = true;  // published by the display thread: a publish holds roscpp's process-wide lock
-      // The old level (megabytes of small arrays) is freed here, off the haptic path, unless the display
-      // thread still draws it (then there, when it lets go).
-      old.reset();
-    } catch (const std::exception& e) {
-      ROS_ERROR("detector: could not prepare level d = %g: %s; keeping the current level", distance, e.what());
-    }
-  }
-}
-
-std::shared_ptr<const ClodSphereSet> HapticDetector::fetchFromService(double distance, std::string& why) {
-  ros::ServiceClient client = nh_.serviceClient<GetSphereSet>(serviceName_);
-  if (!client.waitForExistence(ros::Duration(serviceTimeout_))) {
-    why = "service " + client.getService() + " not available";
-    return nullptr;
-  }
-  GetSphereSet srv;
-  srv.request.distance = distance;
-  if (!client.call(srv)) {
-    why = "call to " + client.getService() + " failed";
-    return nullptr;
-  }
-  if (!srv.response.success) {
-    why = "sphere_builder refused: " + srv.response.message;
-    return nullptr;
-  }
-  auto set = std::make_shared<ClodSphereSet>(fromMsg(srv.response.sphere_set));
-  const std::string mismatch = fitProblem(*mesh_, *set);
-  if (!mismatch.empty()) {
-    why = "the served set does not fit this detector's mesh: " + mismatch;
-    return nullptr;
-  }
-  return set;
-}
-
-std::shared_ptr<const HapticDetector::Level> HapticDetector::makeLevel(double distance) {
-  const auto start = std::chrono::steady_clock::now();
-  auto level = std::make_shared<Level>();
-  std::shared_ptr<const ClodSphereSet> set;
-  if (useService_) {
-    std::string why;
-    set = fetchFromService(distance, why);
-    if (set) {
-      level->source = "service";
-    } else {
-      ROS_WARN("detector: %s; building level d = %g locally", why.c_str(), distance);
-    }
-  }
-  if (!set) {
-    if (!localBuilder_) localBuilder_ = std::make_unique<ClodBuilder>(mesh_, std::make_shared<PaperPlacement>(), clustering_);
-    set = std::make_shared<const ClodSphereSet>(localBuilder_->build(distance));
-    level->source = "local";
-  }
-  level->detector = std::make_shared<const ClodDetector>(mesh_, set, fastLevel_, gridRadius_);
-  level->distance = distance;
-  level->spheres = static_cast<std::uint32_t>(set->size());
-  level->readyMs = msSince(start);
-  return level;
-}
-
-// ------------------------------------------------------------------------------------------------
-// Display and status (display thread).
-
-void HapticDetector::onStatusTimer(const ros::SteadyTimerEvent&) {
-  // Loss is never silent: warn (at most every 5 s) whenever a counter grew.
-  const std::uint64_t skipped = skippedStale_.load(), lost = lostUpstream_.load();
-  if (lost > warnedLost_) {
-    ROS_WARN_THROTTLE(5.0, "detector: %lu poses lost before reaching the detector (gaps in the pose stream's "
-                      "header.seq; %lu in all): a publisher or roscpp queue dropped them",
-                      static_cast<unsigned long>(lost - warnedLost_), static_cast<unsigned long>(lost));
-    warnedLost_ = lost;
-  }
-  if (skipped > warnedSkipped_) {
-    ROS_WARN_THROTTLE(5.0, "detector: skipped %lu stale poses (pose_policy latest: a newer pose was waiting; %lu "
-                      "in all): the detector falls behind the stream",
-                      static_cast<unsigned long>(skipped - warnedSkipped_), static_cast<unsigned long>(skipped));
-    warnedSkipped_ = skipped;
-  }
-  publishStatus();
-}
-
-void HapticDetector::publishStatus() {
-  auto status = boost::make_shared<DetectorStatus>();
-  status->header.stamp = ros::Time::now();
-  status->header.frame_id = meshFrame_;
-  {
-    std::lock_guard<std::mutex> lock(statusMutex_);  // the worker publishes on a swap, the display thread each second
-    status->sequence = ++statusSequence_;
-  }
-  status->poses_received = received_.load();
-  status->contacts_published = published_.load();
-  status->dropped_non_finite = droppedNonFinite_.load();
-  status->dropped_unknown_frame = droppedFrame_.load();
-  status->poses_lost_upstream = lostUpstream_.load();
-  status->poses_skipped_stale = skippedStale_.load();
-  status->pose_policy = toString(posePolicy_);
-  status->pose_queue_size = static_cast<std::uint32_t>(poseQueueSize_);
-  status->publish_queue_size = static_cast<std::uint32_t>(publishQueueSize_);
-  status->pose_path_p50_us = posePath_.percentileUs(50.0);
-  status->pose_path_p99_us = posePath_.percentileUs(99.0);
-  status->pose_path_p999_us = posePath_.percentileUs(99.9);
-  status->pose_path_max_us = posePath_.maxUs();
-  status->pose_path_period_max_us = posePath_.takePeriodMaxUs();
-  status->answered_without_level = bruteForce_.load();
-  status->level_swaps = swaps_.load();
-  status->requested_distance = requestedDistance_.load();
-  const auto level = currentLevel();
-  status->clustering_distance = level ? level->distance : std::numeric_limits<double>::quiet_NaN();
-  status->level_spheres = level ? level->spheres : 0;
-  status->level_source = level ? level->source : "";
-  status->level_ready_ms = level ? level->readyMs : 0.0;
-  statusPub_.publish(status);
-}
-
-void HapticDetector::onDisplayTimer(const ros::SteadyTimerEvent&) {
-  if (statusDirty_.exchange(false)) publishStatus();  // a new level: say so now, not at the next second
-  const bool wanted = markerPub_.getNumSubscribers() > 0;
-  markersWanted_.store(wanted, std::memory_order_relaxed);
-  if (!wanted) return;
-  publishMarkers();
-}
-
-void HapticDetector::publishMarkers() {
-  LastQuery last;
-  {
-    std::lock_guard<std::mutex> lock(lastMutex_);
-    last = last_;
-  }
-  const auto level = currentLevel();
-  auto array = boost::make_shared<visualization_msgs::MarkerArray>();
-  std_msgs::Header header;
-  header.frame_id = meshFrame_;
-  header.stamp = ros::Time(0);
-
-  if (meshDirty_.exchange(false)) {
-    shownMesh_ = showMesh_;
-    if (shownMesh_) {
-      array->markers.push_back(meshMarker(*mesh_, header, makeColor(0.75f, 0.75f, 0.78f, 1.0f)));
-    } else {
-      array->markers.push_back(deleteMarker(marker_ns::kMesh, 0, header));
-    }
-  }
-  const std::uint64_t levelId = level ? level->detector->id() : 0;
-  if (spheresDirty_.exchange(false) || levelId != shownLevelId_) {
-    shownSpheresOn_ = showSpheres_;
-    if (level && shownSpheresOn_) {
-      shownSpheres_ = appendSphereMarkers(*level->detector->spheres(), nullptr, marker_ns::kSpheres, header,
-                                          makeColor(0.2f, 0.45f, 1.0f, 0.18f), shownSpheres_, *array);
-    } else {
-      static const ClodSphereSet empty;
-      shownSpheres_ =
-          appendSphereMarkers(empty, nullptr, marker_ns::kSpheres, header, makeColor(0, 0, 0, 0), shownSpheres_, *array);
-    }
-    shownLevelId_ = levelId;
-  }
-
-  if (last.valid) {
-    hitBuffer_.clear();
-    if (level && showHit_) level->detector->hitSpheres(last.pointer, last.radius, hitBuffer_);
-    const ClodSphereSet* set = level ? level->detector->spheres().get() : nullptr;
-    static const ClodSphereSet empty;
-    shownHit_ = appendSphereMarkers(set ? *set : empty, &hitBuffer_, marker_ns::kHitSpheres, header,
-                                    makeColor(1.0f, 0.55f, 0.0f, 0.55f), shownHit_, *array);
-
-    ContactResult shown = last.result;
-    if (!showContact_) shown.contact = false;
-    appendContactMarkers(shown, std::max(8.0 * last.radius, 0.01), header, *array);
-    if (showPointer_) {
-      array->markers.push_back(
-          pointerMarker(last.pointer, last.radius, header,
-                        last.result.contact ? makeColor(1.0f, 0.2f, 0.2f, 0.9f) : makeColor(0.1f, 0.9f, 0.2f, 0.9f)));
-    } else {
-      array->markers.push_back(deleteMarker(marker_ns::kPointer, 0, header));
-    }
-  }
-  if (!array->markers.empty()) markerPub_.publish(array);
 }
 
 }  // namespace clod_haptics

@@ -112,6 +112,29 @@ void appendContactMarkers(const ContactResult& result, double arrowLength, const
   out.markers.push_back(std::move(arrow));
 }
 
+visualization_msgs::Marker meshResourceMarker(const std::string& resource, const Eigen::Isometry3d& pose, double scale,
+                                              const std_msgs::Header& header, const std_msgs::ColorRGBA& color) {
+  visualization_msgs::Marker m = baseMarker("scene_mesh", 0, visualization_msgs::Marker::MESH_RESOURCE, header);
+  m.mesh_resource = resource;
+  m.pose = toPose(pose);
+  m.scale.x = m.scale.y = m.scale.z = scale;
+  m.color = color;
+  m.frame_locked = true;
+  return m;
+}
+
+void applyOffset(const Eigen::Isometry3d& offset, std::size_t first, visualization_msgs::MarkerArray& out) {
+  for (std::size_t k = first; k < out.markers.size(); ++k) {
+    visualization_msgs::Marker& m = out.markers[k];
+    if (m.action != visualization_msgs::Marker::ADD) continue;
+    if (m.type == visualization_msgs::Marker::SPHERE_LIST) {
+      m.pose = toPose(offset);  // the list's points are in mesh coordinates: the pose carries the offset
+    } else {
+      m.pose.position = toPoint(offset * fromPoint(m.pose.position));
+    }
+  }
+}
+
 visualization_msgs::Marker deleteMarker(const char* ns, int id, const std_msgs::Header& header) {
   visualization_msgs::Marker m;
   m.header = header;

@@ -19,9 +19,11 @@
 
 #include "clod_haptics/DetectorConfig.h"
 #include "clod_haptics/core/contact.h"
-#include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/latency_histogram.h"
-#include "clod_haptics/core/sphere_set.h"
+#include "clod_haptics/core/scene.h"
+#include "clod_haptics/core/scene_assets.h"
+#include "clod_haptics/ros/detector_display.h"
+#include "clod_haptics/ros/scene_config.h"
 
 namespace clod_haptics {
 
@@ -32,27 +34,63 @@ enum class PosePolicy {
 };
 
 /**
- * \brief The detector glue shared by the nodelet and the standalone node: stylus pose in, contact
- * and penalty force out, one of each per answered pose.
+ * \brief The detector's fixed parameters (read once by readParameters) with their defaults, the one place
+ * the code keeps them; config/detector.yaml documents the same values. The settings dynamic_reconfigure
+ * changes (distance, radius, stiffness, ...) take their defaults from cfg/Detector.cfg.
+ */
+struct DetectorParameters {
+  std::string mesh;                     ///< ~mesh: one object (a scene of one); or ~scene, a scene file
+  std::string frameId = "world";        ///< ~frame_id: the frame of ~mesh
+  double scale = 1.0;                   ///< ~scale of ~mesh (file units to metres)
+  bool normalize = false;               ///< ~normalize ~mesh into the unit cube
+  std::string poseTopic = "/phantom/pose";
+  std::string sphereService = "sphere_builder/get_sphere_set";
+  bool useService = true;               ///< ask sphere_builder for levels the disk cache lacks
+  double serviceTimeout = 5.0;          ///< s to wait for sphere_builder before building here
+  bool useCache = true;                 ///< keep levels in a disk cache (~cache_dir)
+  std::string cacheDir;                 ///< "": $CLOD_CACHE_DIR, else $ROS_HOME/clod_haptics_cache, else ~/.ros/...
+  bool cacheMeshes = true;              ///< also cache parsed meshes (a restart skips the parser)
+  std::string clustering = "single-link";
+  FastLevel fastLevel = FastLevel::Grid;
+  double gridRadius = 0.0;              ///< largest pointer radius the grid serves; 0: the pointer radius (scene) or 1%
+  PosePolicy posePolicy = PosePolicy::All;
+  int poseQueueSize = 5000;             ///< poses roscpp keeps for the detector (5 s at 1 kHz)
+  int publishQueueSize = 5000;          ///< answers kept per subscriber that reads too slowly
+  int realtimePriority = 50;            ///< SCHED_FIFO priority of the pose thread where allowed; 0: the default scheduler
+  double markerRate = 30.0;             ///< Hz, only while ~markers has subscribers
+  double staticRetry = 0.5;             ///< s between lookups of a static frame tf2 does not know yet
+  double prefetchMargin = 0.05;         ///< m: objects this close to the pointer get their levels first
+  bool quickStart = false;              ///< answer with hierarchy detectors first, then swap in the final ones
+  bool gridOnDemand = false;            ///< grid detectors only for objects the pointer comes near
+  bool detectorsOnDemand = false;       ///< no detector before the pointer comes near (sets are always read)
+};
+
+/**
+ * \brief The detector glue the nodelet and the node share: stylus pose in; per pose one Contact (~contact:
+ * the deepest contact), one ContactArray (~contacts: every object touched) and one combined penalty force
+ * (~force); a DetectorStatus heartbeat (~status) and markers (~markers) at display rate.
  *
- * Threads: poses arrive on a callback queue of their own, served by the pose thread (the haptic path:
- * a tf2 lookup when the frames differ, one allocation-free core query, two publishes), so nothing else
- * queued in the nodelet manager delays a pose. Markers, status and dynamic_reconfigure run on a private
- * display queue with its own thread. A worker thread (at a lower scheduling priority) fetches a new level
- * from sphere_builder (or builds it locally), swaps it in with an atomic shared_ptr exchange and frees the
- * old one itself, so no pose waits for a build or a free.
+ * A single mesh (~mesh) is a scene of one object in ~frame_id; a scene file (~scene) gives several, on
+ * static or moving tf2 frames (see SceneConfig). Either way one core SceneDetector answers.
  *
- * Loss accounting (DetectorStatus): poses_lost_upstream counts gaps in the pose stream's header.seq
- * (poses that never reached the detector), poses_skipped_stale the poses the Latest policy skipped; the
- * answers carry consecutive header.seq numbers, so a subscriber sees any answer lost on the way to it.
+ * Threads: poses arrive on a callback queue of their own, served by the pose thread (tf2 lookups where
+ * frames differ, one allocation-free core query, the publishes). Markers, status and dynamic_reconfigure run
+ * on a display queue with its own thread. A worker thread (at a lower priority) prepares each object's level
+ * through SceneAssets (memory, disk cache, sphere_builder service, local build, in that order) and publishes
+ * an immutable snapshot of all levels; the pose thread adopts a new snapshot between poses (and at least
+ * every 50 ms when no pose comes), so the scene is touched by one thread only. A replaced snapshot is freed by
+ * the display thread once the pose thread has adopted a newer one: no pose waits for a build or a free, and
+ * the pose thread never takes a lock a lower-priority thread could hold.
+ *
+ * Loss accounting (DetectorStatus): poses_lost_upstream counts gaps in the pose stream's header.seq,
+ * poses_skipped_stale the poses the Latest policy skipped; answers carry consecutive header.seq numbers.
  */
 class HapticDetector {
  public:
   /**
-   * \brief Reads the parameters, loads the mesh and starts the threads; the first level arrives
-   * asynchronously (poses before it are answered by the brute-force reference).
-   * \throws MeshLoadError when ~mesh is missing, unresolvable or unreadable.
-   * \throws InvalidParameter for a bad ~scale, ~fast_level, ~detection_mode or ~clustering.
+   * \brief Reads the parameters, loads the meshes and starts the threads; levels arrive asynchronously
+   * (objects without one are answered by the brute-force reference).
+   * \throws MeshLoadError for a missing or unreadable mesh; InvalidParameter for a bad parameter or scene.
    */
   HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh);
   ~HapticDetector();
@@ -61,140 +99,136 @@ class HapticDetector {
   HapticDetector& operator=(const HapticDetector&) = delete;
 
  private:
-  /** \brief One level as the hot path sees it. Immutable once published. */
-  struct Level {
-    std::shared_ptr<const ClodDetector> detector;
-    double distance = 0.0;
-    std::uint32_t spheres = 0;
-    std::string source;
-    double readyMs = 0.0;
-  };
-  /** \brief What the display thread needs of the last answered pose. */
-  struct LastQuery {
-    bool valid = false;
-    Vec3 pointer = Vec3::Zero();
-    double radius = 0.0;
-    ContactResult result;
+  /** \brief Per object, what the glue adds to the core scene. */
+  struct ObjectState {
+    SceneObjectConfig config;
+    std::string meshPath;
+    bool viaTf = false;      ///< its frame differs from the scene frame
+    bool poseKnown = false;  ///< static: looked up (or the scene frame); moving: the last lookup succeeded
+    ros::WallTime nextRetry;
     EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+  };
+  /** \brief Every object's level, as the worker hands them to the pose thread. Immutable once published. */
+  struct Levels {
+    std::uint64_t id = 0;
+    std::vector<std::shared_ptr<const ClodDetector>> detectors;  ///< per object; null: brute force
+    std::string source;                                          ///< where the newest level came from
+    double readyMs = 0.0;                                        ///< how long it took
+  };
+  /** \brief The worker's plan for one object: the distance it wants and how far its level has come. */
+  struct LevelPlan {
+    double distance = 0.0;
+    std::uint8_t step = 0;  ///< kNone, kSet, kQuick, kFinal (haptic_detector_levels.cpp)
+    bool quick = true;      ///< a hierarchy detector first (~quick_start): at start-up, not after a distance change
+    std::string source;     ///< where the sphere set came from
+    double setMs = 0.0;     ///< how long reading or building it took
   };
 
   void readParameters();
+  void loadObjects();
+  void advertise();
+  void startThreads();
+
+  // Pose thread (haptic_detector.cpp).
   void poseLoop();
   void onPose(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event);
-  void answer(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event);
   void countSequence(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event);
-  std::shared_ptr<const Level> currentLevel();
-  void waitUntilThePoseThreadLetsGo();
+  void answer(const ros::MessageEvent<const geometry_msgs::PoseStamped>& event);
+  bool pointerInSceneFrame(const geometry_msgs::PoseStamped& msg, Vec3& p, Eigen::Isometry3d& sceneFromPose);
+  void updateObjectPoses(const ros::Time& stamp);
+  void adoptPublishedLevels();
+  void askForNearLevels(const Vec3& p);
+  void publishAnswer(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius,
+                     const Eigen::Isometry3d& sceneFromPose, const SceneQueryResult& out, std::int64_t detectionNs);
+  void keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts);
+
+  // Levels (haptic_detector_levels.cpp).
   void onReconfigure(DetectorConfig& config, std::uint32_t level);
-  void requestLevel(double distance);
   void levelWorker();
-  std::shared_ptr<const Level> makeLevel(double distance);
-  std::shared_ptr<const ClodSphereSet> fetchFromService(double distance, std::string& why);
+  bool prepareNextLevel(std::vector<LevelPlan>& plan);
+  void publishLevel(std::size_t object, std::shared_ptr<const ClodDetector> detector, const std::string& source,
+                    double ms);
+  std::shared_ptr<const ClodSphereSet> fetchFromService(const TriangleMesh& mesh, double distance, std::string& why);
+  void freeRetiredLevels();
+
+  // Display thread (haptic_detector_status.cpp).
   void onDisplayTimer(const ros::SteadyTimerEvent& event);
   void onStatusTimer(const ros::SteadyTimerEvent& event);
   void publishStatus();
-  void publishMarkers();
 
   ros::NodeHandle nh_;
   ros::NodeHandle pnh_;
-  ros::CallbackQueue poseQueue_;  // the pose subscription alone: its emptiness means no newer pose waits
+  DetectorParameters params_;
+  SceneConfig config_;
+  bool singleMesh_ = false;  // ~mesh: the markers draw it as triangles, the namespaces carry no object name
+
+  // Pose thread.
+  ros::CallbackQueue poseQueue_;
   ros::NodeHandle poseNh_;
   std::thread poseThread_;
-  ros::MessageEvent<const geometry_msgs::PoseStamped> newestPose_;  // pose thread, pose_policy latest: the newest pose
-  bool newestValid_ = false;
   std::atomic<bool> poseStop_{false};
-  ros::CallbackQueue displayQueue_;
-  ros::NodeHandle displayPnh_;
-  std::unique_ptr<ros::AsyncSpinner> displaySpinner_;
+  ros::MessageEvent<const geometry_msgs::PoseStamped> newestPose_;  // pose_policy latest: the newest pose
+  bool newestValid_ = false;
+  std::string lastPublisher_;  // the last header.seq per publisher, for gaps
+  std::uint32_t lastSeq_ = 0;
+  bool haveSeq_ = false;
 
-  // Parameters (fixed after construction).
-  std::string meshUri_;
-  std::string meshFrame_;
-  std::string poseTopic_;
-  std::string serviceName_;
-  double scale_ = 1.0;
-  bool normalize_ = false;
-  double serviceTimeout_ = 5.0;
-  bool useService_ = true;
-  PosePolicy posePolicy_ = PosePolicy::All;
-  int poseQueueSize_ = 5000;     // poses roscpp keeps for the detector (5 s at 1 kHz); a gap beyond it is counted
-  int publishQueueSize_ = 5000;  // contacts and forces kept per subscriber that reads too slowly
-  int realtimePriority_ = 0;     // SCHED_FIFO priority of the pose thread; 0: the default scheduler
-  double markerRate_ = 30.0;
-  FastLevel fastLevel_ = FastLevel::Grid;
-  double gridRadius_ = 0.0;  // 0: the core's default (1% of the model's diagonal)
-
-  std::shared_ptr<const TriangleMesh> mesh_;
-  std::shared_ptr<const Clustering> clustering_;  // ~clustering, for levels built here when the service is absent
-  std::unique_ptr<ClodBuilder> localBuilder_;  // lazily, on the worker thread only
+  // Core (pose thread only, after construction).
+  std::unique_ptr<SceneAssets> assets_;
+  SceneDetector scene_;
+  std::vector<ObjectState, Eigen::aligned_allocator<ObjectState>> objects_;
+  std::vector<SceneContact> contacts_;  // query output, one slot per object
+  std::vector<QueryCache> caches_;      // temporal coherence, one per object
+  std::uint64_t adoptedId_ = 0;         // the Levels the scene uses (pose thread)
+  std::atomic<std::uint64_t> adopted_{0};  // the same, for the thread that frees replaced Levels
 
   // Settings the hot path reads (written by dynamic_reconfigure).
   std::atomic<double> radius_{0.002};
-  std::atomic<double> stiffness_{500.0};
+  std::atomic<double> stiffness_{400.0};
   std::atomic<double> maxForce_{0.0};
   std::atomic<int> mode_{static_cast<int>(DetectionMode::Exact)};
-  std::atomic<bool> showMesh_{true}, showSpheres_{true}, showHit_{true}, showContact_{true}, showPointer_{true};
+  std::atomic<double> requestedDistance_{0.0};
+  bool configured_ = false;  // the first reconfigure call (start-up) keeps a scene's own distances
 
-  // The current level. The pose thread reads a raw pointer: no lock and no reference count, nothing it could
-  // wait for behind a preempted background thread. The worker owns the level (level_) and lets a replaced one
-  // go only once the pose thread has left every callback that may still use it: poseEpoch_ is odd while a
-  // callback runs (a single reader's read-copy-update).
-  std::atomic<const Level*> poseLevel_{nullptr};
-  std::atomic<std::uint64_t> poseEpoch_{0};
-  // The same level for the worker, the display thread and the status, under a mutex the pose thread never takes.
-  std::mutex levelMutex_;
-  std::shared_ptr<const Level> level_;
-  // Temporal coherence of the pose stream; used only by onPose, which one thread runs at a time
-  // (ros::spin in the node, the nodelet's single-threaded handle). A new level ignores the old entry.
-  QueryCache queryCache_;
-
-  // Level worker.
+  // Levels: the worker publishes, the pose thread adopts, the display thread frees.
   std::thread worker_;
   std::mutex workerMutex_;
   std::condition_variable workerCv_;
   bool stop_ = false;
-  bool pending_ = false;
-  double pendingDistance_ = 0.0;
-  std::atomic<double> requestedDistance_{0.0};
+  bool distanceChanged_ = false;
+  std::unique_ptr<std::atomic<bool>[]> wanted_;  // per object: the pointer is near, prepare it first
+  std::atomic<const Levels*> published_{nullptr};  // the newest snapshot (owned by levels_)
+  std::mutex levelsMutex_;                          // never taken by the pose thread
+  std::shared_ptr<const Levels> levels_;            // the newest snapshot
+  std::vector<std::shared_ptr<const Levels>> retired_;  // replaced snapshots, freed once a newer one is adopted
+  std::uint64_t nextLevelsId_ = 1;
 
   // Counters.
-  std::atomic<std::uint64_t> received_{0}, published_{0}, droppedNonFinite_{0}, droppedFrame_{0}, bruteForce_{0},
+  std::atomic<std::uint64_t> received_{0}, answered_{0}, droppedNonFinite_{0}, droppedFrame_{0}, bruteForce_{0},
       swaps_{0}, skippedStale_{0}, lostUpstream_{0};
-  // Pose thread only: the last header.seq per publisher, for gaps.
-  std::string lastPublisher_;
-  std::uint32_t lastSeq_ = 0;
-  bool haveSeq_ = false;
-  // Pose path: receipt by roscpp to both answers published (microseconds), and the status heartbeat.
-  LatencyHistogram posePath_;
-  std::uint64_t statusSequence_ = 0;  // display thread and worker, under statusMutex_
+  LatencyHistogram posePath_;  // receipt by roscpp to the answers published (microseconds)
   std::mutex statusMutex_;
-  std::uint64_t warnedSkipped_ = 0, warnedLost_ = 0;  // display thread
+  std::uint64_t statusSequence_ = 0;
+  std::uint64_t warnedSkipped_ = 0, warnedLost_ = 0;
+  std::atomic<bool> statusDirty_{false};
+
+  // Display.
+  ros::CallbackQueue displayQueue_;
+  ros::NodeHandle displayPnh_;
+  std::unique_ptr<ros::AsyncSpinner> displaySpinner_;
   std::atomic<bool> markersWanted_{false};
-  std::atomic<bool> statusDirty_{false};  // the worker swapped a level: the display thread publishes the status  // someone subscribes to ~markers: keep the last query for them
-
-  // Last query, for markers.
   std::mutex lastMutex_;
-  LastQuery last_;
-
-  // Display state (display thread only, except the dirty flags). The mesh (megabytes for a large model) is sent
-  // when a subscriber connects or show_mesh changes, the level's spheres when the level or show_spheres changes.
-  std::atomic<bool> meshDirty_{true};
-  std::atomic<bool> spheresDirty_{true};
-  bool shownMesh_ = false;
-  bool shownSpheresOn_ = false;
-  std::uint64_t shownLevelId_ = 0;  // ClodDetector::id() of the level drawn last (an id is never reused)
-  std::size_t shownSpheres_ = 0;
-  std::size_t shownHit_ = 0;
-  std::vector<std::uint32_t> hitBuffer_;
+  DisplayFrame last_;  // the last answered pose, for the markers (try-locked by the pose thread)
+  std::unique_ptr<DetectorDisplay> display_;
 
   tf2_ros::Buffer tfBuffer_;
   std::unique_ptr<tf2_ros::TransformListener> tfListener_;
-
   boost::recursive_mutex configMutex_;
   std::unique_ptr<dynamic_reconfigure::Server<DetectorConfig>> reconfigure_;
 
   ros::Subscriber poseSub_;
   ros::Publisher contactPub_;
+  ros::Publisher contactsPub_;
   ros::Publisher forcePub_;
   ros::Publisher markerPub_;
   ros::Publisher statusPub_;

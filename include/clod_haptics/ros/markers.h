@@ -32,6 +32,20 @@ std_msgs::ColorRGBA makeColor(float r, float g, float b, float a);
 visualization_msgs::Marker meshMarker(const TriangleMesh& mesh, const std_msgs::Header& header,
                                       const std_msgs::ColorRGBA& color);
 
+/**
+ * \brief The mesh file as one MESH_RESOURCE marker (RViz loads the file: a few bytes whatever its size) at pose
+ * in header.frame_id, scaled by scale; resource is a package:// or file:// URI.
+ */
+visualization_msgs::Marker meshResourceMarker(const std::string& resource, const Eigen::Isometry3d& pose, double scale,
+                                              const std_msgs::Header& header, const std_msgs::ColorRGBA& color);
+
+/**
+ * \brief Moves the ADD markers out.markers[first..] from mesh coordinates to a frame in which the mesh sits at
+ * offset (a rigid pose): a list marker's points stay and its pose takes the offset; any other marker's position
+ * is transformed.
+ */
+void applyOffset(const Eigen::Isometry3d& offset, std::size_t first, visualization_msgs::MarkerArray& out);
+
 /** \brief Radius classes per doubling of the radius in appendSphereMarkers: a sphere is drawn at most 2^(1/8) larger. */
 constexpr int kSphereClassesPerOctave = 8;
 
