@@ -67,7 +67,7 @@ bench: deps deps-bench
 	@python3 $(ROOT)/bench/report.py $(BENCH_OUT)
 	@echo "== report: $(BENCH_OUT)/report.md =="
 
-# Scene benchmark (issue 7): 50 objects, 1.9 M triangles; start-up from the level cache against
+# Scene benchmark: 50 objects, 1.9 M triangles; start-up from the level cache against
 # building, query cost near one object in the scene against that object alone. Core only, no peers.
 SCENE_BENCH_WS := $(BUILD)/scene_bench_ws
 .PHONY: scene-bench
@@ -131,7 +131,7 @@ clean:
 	rm -rf $(BUILD)
 
 # ---------------------------------------------------------------------------------------------
-# Fuzzing and sanitizers (issue 6; owned by the tests helper).
+# Fuzzing and sanitizers.
 # `make fuzz` builds the libFuzzer targets in fuzz/ with clang-14 (-fsanitize=fuzzer,address,undefined)
 # against the core sources and runs each for FUZZ_SECONDS (default 60); a crash leaves its input in
 # .build/fuzz/artifacts and fails the target. `make test-sanitize` builds the whole suite with

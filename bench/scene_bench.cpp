@@ -1,4 +1,4 @@
-// Scene benchmark (issue 7): a scene of 50 objects totalling more than a million triangles.
+// Scene benchmark: a scene of 50 objects totalling more than a million triangles.
 //  1. Start-up: every object's level built (empty disk cache) against read from the disk cache by a
 //     fresh SceneAssets on the same directory (a restart). Target: the cache at least 10x faster.
 //  2. Query: a pointer stream near one object, answered by the whole scene (SceneDetector) against

@@ -593,7 +593,7 @@ TEST(ClodDetector, IdsAreUniqueAndNeverZero) {
   }
 }
 
-// Issue 14, item 3: the force must not collapse while the stylus pushes in. A stylus stream (one
+// The force must not collapse while the stylus pushes in. A stylus stream (one
 // QueryCache) pushes straight into box_4x2x1 (x -7..-3, y 10..12, z 0.5..1.5, loaded through the loader),
 // through the middle of the top face, of the edge y = 12, z = 1.5 and of the corner (-3, 12, 1.5), in
 // small steps from outside to the box's middle. From the first touch to the middle, the depth (and so the

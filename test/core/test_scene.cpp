@@ -267,7 +267,7 @@ TEST_F(SceneTest, ObjectWithoutLevelIsAnsweredByBruteForceThenBySwappedLevel) {
   EXPECT_TRUE(out.contact);
 }
 
-// Issue 14, item 3 in a scene: pushing into the box (8 x 4 x 2 cm) from above its top face to its middle, the
+// In a scene: pushing into the box (8 x 4 x 2 cm) from above its top face to its middle, the
 // summed penetration (the force's spring) grows at every step from the first touch, through the box's
 // level and through the brute-force fallback of an object without a level, with the per-object caches.
 TEST_F(SceneTest, PushingIntoAnObjectKeepsThePenetrationGrowing) {

@@ -1,4 +1,4 @@
-// Numerical stability (issue 6): degenerate geometry, extreme scales and offsets, probes exactly on
+// Numerical stability: degenerate geometry, extreme scales and offsets, probes exactly on
 // features, and property tests over random meshes. Every check is against bruteForceQuery.
 //
 // There is no float path in the core: meshes, spheres and queries are double throughout, so no float

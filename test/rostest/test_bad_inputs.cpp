@@ -1,4 +1,4 @@
-// rostest (issue 6): bad input into the running nodes. Each bad input gets a clear answer (dropped and
+// rostest: bad input into the running nodes. Each bad input gets a clear answer (dropped and
 // counted, clamped, refused with a message, or a clean non-zero exit for a broken mesh file), the nodes
 // stay up, and the next valid input is answered correctly: contacts against the core's brute-force
 // reference on the same mesh, sphere sets against the core's builder.
