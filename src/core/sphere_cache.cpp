@@ -1,16 +1,12 @@
 #include "clod_haptics/core/sphere_cache.h"
 
 #include <chrono>
-#include <cinttypes>
-#include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <vector>
 
-
+#include "binary_io.h"
 #include "clod_haptics/core/atomic_file.h"
 #include "clod_haptics/core/errors.h"
 
@@ -18,59 +14,13 @@ namespace clod_haptics {
 
 namespace {
 
-constexpr char kMagic[8] = {'C', 'L', 'O', 'D', 'S', 'P', 'H', '\0'};
+using detail::ByteReader;
+using detail::ByteWriter;
+
+constexpr detail::CacheMagic kMagic = {'C', 'L', 'O', 'D', 'S', 'P', 'H', '\0'};
+constexpr const char* kKind = "sphere cache";
 constexpr std::uint32_t kByteOrder = 0x01020304u;
 constexpr std::uint64_t kFnvPrime = 0x100000001b3ull;
-
-/** Appends raw values to a byte buffer. */
-class Writer {
- public:
-  template <class T>
-  void put(const T& value) {
-    append(&value, sizeof(T));
-  }
-  void append(const void* data, std::size_t bytes) {
-    const char* p = static_cast<const char*>(data);
-    buffer_.insert(buffer_.end(), p, p + bytes);
-  }
-  std::vector<char>& buffer() { return buffer_; }
-
- private:
-  std::vector<char> buffer_;
-};
-
-/** Reads raw values from a byte buffer; running past its end is a FormatError. */
-class Reader {
- public:
-  Reader(const char* data, std::size_t size, const std::string& path) : data_(data), size_(size), path_(path) {}
-  template <class T>
-  T get(const char* what) {
-    T value;
-    read(&value, sizeof(T), what);
-    return value;
-  }
-  void read(void* out, std::size_t bytes, const char* what) {
-    if (bytes > size_ - pos_) fail(std::string("truncated in ") + what);
-    std::memcpy(out, data_ + pos_, bytes);
-    pos_ += bytes;
-  }
-  std::size_t remaining() const { return size_ - pos_; }
-  [[noreturn]] void fail(const std::string& why) const {
-    throw FormatError("sphere cache file '" + path_ + "': " + why);
-  }
-
- private:
-  const char* data_;
-  std::size_t size_;
-  std::size_t pos_ = 0;
-  const std::string& path_;
-};
-
-std::string hex64(std::uint64_t v) {
-  char text[17];
-  std::snprintf(text, sizeof(text), "%016" PRIx64, v);
-  return text;
-}
 
 std::uint64_t bitsOf(double d) {
   std::uint64_t bits;
@@ -78,11 +28,62 @@ std::uint64_t bitsOf(double d) {
   return bits;
 }
 
+void writeStats(ByteWriter& w, const BuildStats& s) {
+  for (std::size_t v : {s.centres, s.spheres, s.unpaired, s.degenerate, s.maxTrianglesPerSphere})
+    w.put(static_cast<std::uint64_t>(v));
+  for (double v : {s.meanTrianglesPerSphere, s.placementMs, s.clusteringMs}) w.put(v);
+}
+
+void readStats(ByteReader& r, BuildStats& s) {
+  for (std::size_t* v : {&s.centres, &s.spheres, &s.unpaired, &s.degenerate, &s.maxTrianglesPerSphere})
+    *v = r.get<std::uint64_t>("stats");
+  for (double* v : {&s.meanTrianglesPerSphere, &s.placementMs, &s.clusteringMs}) *v = r.get<double>("stats");
+}
+
+/** The counts of the arrays that follow the header. */
+struct ArrayCounts {
+  std::uint64_t spheres = 0, listings = 0, nameLength = 0;
+};
+
+/** Reads the header after the version into set, checked against what the caller expects. */
+ArrayCounts readHeader(ByteReader& r, std::uint64_t meshHash, double distance, const TriangleMesh& mesh,
+                       ClodSphereSet& set) {
+  if (r.get<std::uint32_t>("the byte order") != kByteOrder) r.fail("written on a machine of another byte order");
+  if (r.get<std::uint64_t>("the mesh hash") != meshHash) r.fail("written for another mesh (content hash differs)");
+  set.distance = r.get<double>("the distance");
+  if (bitsOf(set.distance) != bitsOf(distance)) {
+    r.fail("written for clustering distance " + std::to_string(set.distance) + ", expected " +
+           std::to_string(distance));
+  }
+  set.scale = r.get<double>("the scale");
+  const auto meshTriangles = r.get<std::uint64_t>("the triangle count");
+  if (meshTriangles != mesh.size()) r.fail("written for a mesh of " + std::to_string(meshTriangles) + " triangles");
+  set.stats.triangles = meshTriangles;
+  ArrayCounts counts;
+  counts.spheres = r.get<std::uint64_t>("the sphere count");
+  counts.listings = r.get<std::uint64_t>("the listing count");
+  counts.nameLength = r.get<std::uint64_t>("the name length");
+  readStats(r, set.stats);
+  return counts;
+}
+
+void readArrays(ByteReader& r, const ArrayCounts& c, ClodSphereSet& set) {
+  r.expectArrays({{c.spheres, sizeof(Vec3)},
+                  {c.spheres, sizeof(double)},
+                  {c.spheres + 1, sizeof(std::uint32_t)},
+                  {c.listings, sizeof(std::uint32_t)},
+                  {c.nameLength, 1}});
+  r.readArray(set.centres, c.spheres, "centres");
+  r.readArray(set.radii, c.spheres, "radii");
+  r.readArray(set.offsets, c.spheres + 1, "offsets");
+  r.readArray(set.triangles, c.listings, "triangles");
+  r.readArray(set.meshName, c.nameLength, "the mesh name");
+}
+
 }  // namespace
 
 std::uint64_t fnv1a64(const void* data, std::size_t bytes, std::uint64_t seed) {
-  // FNV-1a over 64-bit words (then the tail byte by byte): the same mixing as the byte-wise
-  // original, eight times fewer multiplications, which matters for meshes of millions of triangles.
+  // FNV-1a over 64-bit words, then the tail byte by byte: eight times fewer multiplications than byte by byte.
   const auto* p = static_cast<const unsigned char*>(data);
   std::uint64_t h = seed;
   std::size_t i = 0;
@@ -117,9 +118,7 @@ void writeSphereSetBinary(const ClodSphereSet& set, std::uint64_t meshHash, cons
   if (set.radii.size() != n || set.offsets.size() != n + 1 || set.offsets.back() != m) {
     throw FormatError("cannot write sphere cache file '" + path + "': malformed sphere set");
   }
-  Writer w;
-  w.append(kMagic, sizeof(kMagic));
-  w.put(kSphereCacheFormatVersion);
+  ByteWriter w(kMagic, kSphereCacheFormatVersion);
   w.put(kByteOrder);
   w.put(meshHash);
   w.put(set.distance);
@@ -128,91 +127,24 @@ void writeSphereSetBinary(const ClodSphereSet& set, std::uint64_t meshHash, cons
   w.put(n);
   w.put(m);
   w.put(static_cast<std::uint64_t>(set.meshName.size()));
-  const BuildStats& s = set.stats;
-  for (std::size_t v : {s.centres, s.spheres, s.unpaired, s.degenerate, s.maxTrianglesPerSphere})
-    w.put(static_cast<std::uint64_t>(v));
-  for (double v : {s.meanTrianglesPerSphere, s.placementMs, s.clusteringMs}) w.put(v);
-  w.append(set.centres.data(), n * sizeof(Vec3));
-  w.append(set.radii.data(), n * sizeof(double));
-  w.append(set.offsets.data(), (n + 1) * sizeof(std::uint32_t));
-  w.append(set.triangles.data(), m * sizeof(std::uint32_t));
-  w.append(set.meshName.data(), set.meshName.size());
-  const std::uint64_t checksum = fnv1a64(w.buffer().data(), w.buffer().size());
-  w.put(checksum);
-
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw FormatError("cannot write sphere cache file '" + path + "': cannot open it");
-  out.write(w.buffer().data(), static_cast<std::streamsize>(w.buffer().size()));
-  out.close();
-  if (!out) throw FormatError("cannot write sphere cache file '" + path + "': write failed");
+  writeStats(w, set.stats);
+  w.putArray(set.centres);
+  w.putArray(set.radii);
+  w.putArray(set.offsets);
+  w.putArray(set.triangles);
+  w.putArray(set.meshName);
+  w.writeWithChecksum(path, kKind);
 }
 
 ClodSphereSet readSphereSetBinary(const std::string& path, std::uint64_t meshHash, double distance,
                                   const TriangleMesh& mesh) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) throw FormatError("sphere cache file '" + path + "': cannot open it");
-  const std::streamoff size = in.tellg();
-  if (size < 0) throw FormatError("sphere cache file '" + path + "': cannot read its size");
-  std::vector<char> bytes(static_cast<std::size_t>(size));
-  in.seekg(0);
-  in.read(bytes.data(), size);
-  if (!in) throw FormatError("sphere cache file '" + path + "': read failed");
-
-  Reader r(bytes.data(), bytes.size(), path);
-  if (bytes.size() < sizeof(kMagic) + sizeof(std::uint64_t)) r.fail("too short to be a cache file");
-  // Checksum first: nothing below reads a byte the checksum did not cover.
-  std::uint64_t stored;
-  std::memcpy(&stored, bytes.data() + bytes.size() - sizeof(stored), sizeof(stored));
-  if (fnv1a64(bytes.data(), bytes.size() - sizeof(stored)) != stored) r.fail("checksum mismatch (corrupt file)");
-  Reader body(bytes.data(), bytes.size() - sizeof(stored), path);
-
-  char magic[sizeof(kMagic)];
-  body.read(magic, sizeof(magic), "the magic");
-  if (std::memcmp(magic, kMagic, sizeof(kMagic)) != 0) r.fail("not a clod_haptics sphere cache file");
-  const auto version = body.get<std::uint32_t>("the version");
-  if (version != kSphereCacheFormatVersion) {
-    r.fail("format version " + std::to_string(version) + ", expected " + std::to_string(kSphereCacheFormatVersion));
-  }
-  if (body.get<std::uint32_t>("the byte order") != kByteOrder) r.fail("written on a machine of another byte order");
-  if (body.get<std::uint64_t>("the mesh hash") != meshHash) r.fail("written for another mesh (content hash differs)");
+  std::vector<char> bytes;
+  const std::string unreadable = detail::readFileBytes(path, bytes);
+  if (!unreadable.empty()) throw FormatError(std::string(kKind) + " file '" + path + "': " + unreadable);
+  ByteReader r = detail::openCacheFile(bytes, kMagic, kSphereCacheFormatVersion, kKind, path);
   ClodSphereSet set;
-  set.distance = body.get<double>("the distance");
-  if (bitsOf(set.distance) != bitsOf(distance)) {
-    r.fail("written for clustering distance " + std::to_string(set.distance) + ", expected " +
-           std::to_string(distance));
-  }
-  set.scale = body.get<double>("the scale");
-  const auto meshTriangles = body.get<std::uint64_t>("the triangle count");
-  if (meshTriangles != mesh.size()) r.fail("written for a mesh of " + std::to_string(meshTriangles) + " triangles");
-  const auto n = body.get<std::uint64_t>("the sphere count");
-  const auto m = body.get<std::uint64_t>("the listing count");
-  const auto nameLength = body.get<std::uint64_t>("the name length");
-  set.stats.triangles = meshTriangles;
-  set.stats.centres = body.get<std::uint64_t>("stats");
-  set.stats.spheres = body.get<std::uint64_t>("stats");
-  set.stats.unpaired = body.get<std::uint64_t>("stats");
-  set.stats.degenerate = body.get<std::uint64_t>("stats");
-  set.stats.maxTrianglesPerSphere = body.get<std::uint64_t>("stats");
-  set.stats.meanTrianglesPerSphere = body.get<double>("stats");
-  set.stats.placementMs = body.get<double>("stats");
-  set.stats.clusteringMs = body.get<double>("stats");
-  // Sizes must add up to the file exactly before anything is allocated from them.
-  const std::uint64_t expected = n * (sizeof(Vec3) + sizeof(double) + sizeof(std::uint32_t)) +
-                                 sizeof(std::uint32_t) + m * sizeof(std::uint32_t) + nameLength;
-  if (n > bytes.size() || m > bytes.size() || nameLength > bytes.size() || expected != body.remaining()) {
-    r.fail("array sizes do not match the file size");
-  }
-  set.centres.resize(n);
-  set.radii.resize(n);
-  set.offsets.resize(n + 1);
-  set.triangles.resize(m);
-  set.meshName.resize(nameLength);
-  body.read(set.centres.data(), n * sizeof(Vec3), "centres");
-  body.read(set.radii.data(), n * sizeof(double), "radii");
-  body.read(set.offsets.data(), (n + 1) * sizeof(std::uint32_t), "offsets");
-  body.read(set.triangles.data(), m * sizeof(std::uint32_t), "triangles");
-  body.read(set.meshName.data(), nameLength, "the mesh name");
-
+  const ArrayCounts counts = readHeader(r, meshHash, distance, mesh, set);
+  readArrays(r, counts, set);
   // The set must fit the mesh: the detector relies on coverage to miss no contact.
   const std::string misfit = fitProblem(mesh, set);
   if (!misfit.empty()) r.fail(misfit);
@@ -242,11 +174,41 @@ const char* toString(CacheSource source) {
   return "?";
 }
 
-SphereSetCache::SphereSetCache(std::string directory)
+DiskCache::DiskCache(std::string directory)
     : directory_(directory.empty() ? defaultSphereCacheDirectory() : std::move(directory)) {}
 
+void DiskCache::lookUp(CacheOutcome& out, std::chrono::steady_clock::time_point start,
+                       const std::function<void()>& read, const std::function<void()>& build,
+                       const std::function<void(const std::string& tmp)>& write) {
+  auto elapsed = [&] {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  };
+  std::error_code ec;
+  if (std::filesystem::exists(out.path, ec)) {
+    try {
+      read();
+      hits_.fetch_add(1);
+      out.source = CacheSource::Hit;
+      out.ms = elapsed();
+      return;
+    } catch (const FormatError& e) {
+      rejected_.fetch_add(1);
+      out.source = CacheSource::Rebuilt;
+      out.problem = e.what();
+      std::filesystem::remove(out.path, ec);  // never trusted again, even if the rebuild below fails
+    }
+  } else {
+    out.source = CacheSource::Built;
+  }
+  build();
+  storeAtomically(directory_, out.path, write, out.problem);
+  out.ms = elapsed();
+}
+
+SphereSetCache::SphereSetCache(std::string directory) : DiskCache(std::move(directory)) {}
+
 std::string SphereSetCache::pathFor(std::uint64_t meshHash, double distance) const {
-  return directory_ + "/mesh-" + hex64(meshHash) + "-d" + hex64(bitsOf(distance)) + "-v" +
+  return directory() + "/mesh-" + detail::hex64(meshHash) + "-d" + detail::hex64(bitsOf(distance)) + "-v" +
          std::to_string(kSphereCacheFormatVersion) + ".clodsph";
 }
 
@@ -261,33 +223,15 @@ std::shared_ptr<const ClodSphereSet> SphereSetCache::getOrBuild(const TriangleMe
   CacheOutcome& out = outcome ? *outcome : local;
   out = CacheOutcome();
   out.path = pathFor(meshHash, distance);
-  auto elapsed = [&] {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  };
-
-  std::error_code ec;
-  if (std::filesystem::exists(out.path, ec)) {
-    try {
-      auto set = std::make_shared<const ClodSphereSet>(readSphereSetBinary(out.path, meshHash, distance, mesh));
-      hits_.fetch_add(1);
-      out.source = CacheSource::Hit;
-      out.ms = elapsed();
-      return set;
-    } catch (const FormatError& e) {
-      rejected_.fetch_add(1);
-      out.source = CacheSource::Rebuilt;
-      out.problem = e.what();
-      std::filesystem::remove(out.path, ec);  // never trusted again, even if the rebuild below fails
-    }
-  } else {
-    misses_.fetch_add(1);
-    out.source = CacheSource::Built;
-  }
-
-  auto set = std::make_shared<const ClodSphereSet>(build());
-  storeAtomically(
-      directory_, out.path, [&](const std::string& tmp) { writeSphereSetBinary(*set, meshHash, tmp); }, out.problem);
-  out.ms = elapsed();
+  std::shared_ptr<const ClodSphereSet> set;
+  lookUp(
+      out, start,
+      [&] { set = std::make_shared<const ClodSphereSet>(readSphereSetBinary(out.path, meshHash, distance, mesh)); },
+      [&] {
+        if (out.source == CacheSource::Built) misses_.fetch_add(1);
+        set = std::make_shared<const ClodSphereSet>(build());
+      },
+      [&](const std::string& tmp) { writeSphereSetBinary(*set, meshHash, tmp); });
   return set;
 }
 

@@ -40,7 +40,7 @@ TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey);
  * key. Like SphereSetCache: a bad file is deleted and the mesh loaded again, files appear atomically.
  * Thread-safe.
  */
-class MeshCache {
+class MeshCache : public DiskCache {
  public:
   /** \brief A cache in directory; empty means defaultSphereCacheDirectory(). */
   explicit MeshCache(std::string directory = "");
@@ -54,18 +54,11 @@ class MeshCache {
 
   /** \brief The file that holds a mesh of this key. */
   std::string pathFor(std::uint64_t sourceKey) const;
-  /** \brief The directory. */
-  const std::string& directory() const { return directory_; }
-  /** \brief Meshes read from the cache. */
-  std::uint64_t hits() const { return hits_.load(); }
   /** \brief Meshes parsed because no (valid) file existed. */
   std::uint64_t parsed() const { return parsed_.load(); }
-  /** \brief Files rejected as stale or corrupt. */
-  std::uint64_t rejected() const { return rejected_.load(); }
 
  private:
-  std::string directory_;
-  std::atomic<std::uint64_t> hits_{0}, parsed_{0}, rejected_{0};
+  std::atomic<std::uint64_t> parsed_{0};
 };
 
 }  // namespace clod_haptics

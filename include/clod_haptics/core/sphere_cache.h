@@ -1,6 +1,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -68,6 +69,37 @@ struct CacheOutcome {
 };
 
 /**
+ * \brief What the disk caches (SphereSetCache, MeshCache) share: a directory of files named by key, a file
+ * that fails its checks deleted and its content built again, files stored atomically, and counters.
+ */
+class DiskCache {
+ public:
+  /** \brief The directory. */
+  const std::string& directory() const { return directory_; }
+  /** \brief Entries read from disk. */
+  std::uint64_t hits() const { return hits_.load(); }
+  /** \brief Files rejected as stale or corrupt (and built again). */
+  std::uint64_t rejected() const { return rejected_.load(); }
+
+ protected:
+  /** \brief A cache in directory (created on the first store); empty means defaultSphereCacheDirectory(). */
+  explicit DiskCache(std::string directory);
+
+  /**
+   * \brief One lookup of the file out.path: read() when the file exists (a hit), else, or when read() throws
+   * FormatError (the file is then deleted and never trusted again), build() and store the result with
+   * write(tmp). Fills out.source, out.problem and out.ms (from start).
+   * \throws whatever build() throws.
+   */
+  void lookUp(CacheOutcome& out, std::chrono::steady_clock::time_point start, const std::function<void()>& read,
+              const std::function<void()>& build, const std::function<void(const std::string& tmp)>& write);
+
+ private:
+  std::string directory_;
+  std::atomic<std::uint64_t> hits_{0}, rejected_{0};
+};
+
+/**
  * \brief A disk cache of CLOD levels, one file per (mesh content hash, clustering distance, format
  * version). A restart finds the files and does not rebuild; a stale or corrupt file is detected,
  * deleted and rebuilt, never trusted. Files are written to a temporary name and renamed, so a crash
@@ -76,7 +108,7 @@ struct CacheOutcome {
  * Thread-safe: getOrBuild may run concurrently (two threads asking for the same level may both
  * build it; the last rename wins and both results are valid).
  */
-class SphereSetCache {
+class SphereSetCache : public DiskCache {
  public:
   /** \brief A cache in directory (created on the first store); empty means defaultSphereCacheDirectory(). */
   explicit SphereSetCache(std::string directory = "");
@@ -95,18 +127,11 @@ class SphereSetCache {
                                                   const std::function<ClodSphereSet()>& build,
                                                   CacheOutcome* outcome = nullptr);
 
-  /** \brief The directory. */
-  const std::string& directory() const { return directory_; }
-  /** \brief Levels read from disk. */
-  std::uint64_t hits() const { return hits_.load(); }
   /** \brief Levels built because no file existed. */
   std::uint64_t misses() const { return misses_.load(); }
-  /** \brief Files rejected as stale or corrupt (and rebuilt). */
-  std::uint64_t rejected() const { return rejected_.load(); }
 
  private:
-  std::string directory_;
-  std::atomic<std::uint64_t> hits_{0}, misses_{0}, rejected_{0};
+  std::atomic<std::uint64_t> misses_{0};
 };
 
 }  // namespace clod_haptics

@@ -1,0 +1,87 @@
+#include "binary_io.h"
+
+#include <cinttypes>
+#include <cstdio>
+#include <fstream>
+
+#include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/sphere_cache.h"
+
+namespace clod_haptics {
+namespace detail {
+
+ByteWriter::ByteWriter(const CacheMagic& magic, std::uint32_t version, std::size_t reserve) {
+  buffer_.reserve(sizeof(CacheMagic) + sizeof(version) + reserve);
+  buffer_.assign(magic, magic + sizeof(CacheMagic));
+  put(version);
+}
+
+void ByteWriter::writeWithChecksum(const std::string& path, const char* kind) {
+  put(fnv1a64(buffer_.data(), buffer_.size()));
+  const std::string prefix = std::string("cannot write ") + kind + " file '" + path + "': ";
+  std::ofstream file(path, std::ios::binary | std::ios::trunc);
+  if (!file) throw FormatError(prefix + "cannot open it");
+  file.write(buffer_.data(), static_cast<std::streamsize>(buffer_.size()));
+  file.close();
+  if (!file) throw FormatError(prefix + "write failed");
+}
+
+void ByteReader::expectArrays(std::initializer_list<std::pair<std::uint64_t, std::size_t>> countsAndSizes) const {
+  std::uint64_t total = 0;
+  for (const auto& [count, size] : countsAndSizes) {
+    if (count > remaining()) fail("array sizes do not match the file size");
+    total += count * size;
+  }
+  if (total != remaining()) fail("array sizes do not match the file size");
+}
+
+void ByteReader::fail(const std::string& why) const {
+  throw FormatError(std::string(kind_) + " file '" + path_ + "': " + why);
+}
+
+void ByteReader::failTruncated(const char* field) const {
+  fail(field != nullptr ? std::string("truncated in ") + field : std::string("truncated"));
+}
+
+std::string readFileBytes(const std::string& path, std::vector<char>& bytes) {
+  bytes.clear();
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) return "cannot open it";
+  const std::streamoff size = in.tellg();
+  if (size < 0) return "cannot read its size";
+  bytes.resize(static_cast<std::size_t>(size));
+  in.seekg(0);
+  in.read(bytes.data(), size);
+  if (!in) return "read failed";
+  return {};
+}
+
+ByteReader openCacheFile(const std::vector<char>& bytes, const CacheMagic& magic, std::uint32_t version,
+                         const char* kind, const std::string& path) {
+  const ByteReader whole(bytes.data(), bytes.size(), kind, path);
+  std::uint64_t stored;
+  if (bytes.size() < sizeof(CacheMagic) + sizeof(stored)) whole.fail("too short to be a cache file");
+  std::memcpy(&stored, bytes.data() + bytes.size() - sizeof(stored), sizeof(stored));
+  if (fnv1a64(bytes.data(), bytes.size() - sizeof(stored)) != stored) whole.fail("checksum mismatch (corrupt file)");
+
+  ByteReader body(bytes.data(), bytes.size() - sizeof(stored), kind, path);
+  char found[sizeof(CacheMagic)];
+  body.read(found, sizeof(found), "the magic");
+  if (std::memcmp(found, magic, sizeof(CacheMagic)) != 0) {
+    body.fail(std::string("not a clod_haptics ") + kind + " file");
+  }
+  const auto foundVersion = body.get<std::uint32_t>("the version");
+  if (foundVersion != version) {
+    body.fail("format version " + std::to_string(foundVersion) + ", expected " + std::to_string(version));
+  }
+  return body;
+}
+
+std::string hex64(std::uint64_t v) {
+  char text[17];
+  std::snprintf(text, sizeof(text), "%016" PRIx64, v);
+  return text;
+}
+
+}  // namespace detail
+}  // namespace clod_haptics
