@@ -1,9 +1,9 @@
 // bag_replay: recorded stylus motion on the Phantom bridge's topics. See
-// include/clod_haptics/device/bag_replay.h. Exits 1 with a clear message for a missing,
+// include/clod_haptics/ros/bag_replay.h. Exits 1 with a clear message for a missing,
 // truncated or unreadable bag, a missing topic or a bad parameter.
 #include <ros/ros.h>
 
-#include "clod_haptics/device/bag_replay.h"
+#include "clod_haptics/ros/bag_replay.h"
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "bag_replay");

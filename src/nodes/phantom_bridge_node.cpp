@@ -1,8 +1,8 @@
 // phantom_bridge: a Phantom / Geomagic Touch (OpenHaptics) or a simulated device on the topics
-// of the omni_common / Geomagic Touch ROS drivers. See include/clod_haptics/device/phantom_bridge.h.
+// of the omni_common / Geomagic Touch ROS drivers. See include/clod_haptics/ros/phantom_bridge.h.
 #include <ros/ros.h>
 
-#include "clod_haptics/device/phantom_bridge.h"
+#include "clod_haptics/ros/phantom_bridge.h"
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "phantom_bridge");

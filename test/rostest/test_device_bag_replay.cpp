@@ -15,7 +15,7 @@
 #include "clod_haptics/Contact.h"
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/mesh_loader.h"
-#include "clod_haptics/device/bag_source.h"
+#include "clod_haptics/ros/bag_source.h"
 #include "clod_haptics/ros/mesh_resource.h"
 #include "test_timing.h"
 #include "detector_answers.h"

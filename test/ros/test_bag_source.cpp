@@ -13,7 +13,7 @@
 #include <fstream>
 #include <optional>
 
-#include "clod_haptics/device/bag_source.h"
+#include "clod_haptics/ros/bag_source.h"
 #include "clod_haptics/test_config.h"
 #include "../scoped_pwd.h"
 

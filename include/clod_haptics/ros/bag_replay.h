@@ -4,8 +4,8 @@
 
 #include <string>
 
-#include "clod_haptics/device/bag_source.h"
 #include "clod_haptics/device/stylus_trajectory.h"
+#include "clod_haptics/ros/bag_source.h"
 
 namespace clod_haptics {
 namespace device {

@@ -1,4 +1,4 @@
-#include "clod_haptics/device/phantom_bridge.h"
+#include "clod_haptics/ros/phantom_bridge.h"
 
 #include <geometry_msgs/PoseStamped.h>
 #include <sensor_msgs/JointState.h>
@@ -9,8 +9,8 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include "clod_haptics/device/pose_msg.h"
 #include "clod_haptics/device/simulated_device.h"
+#include "clod_haptics/ros/pose_msg.h"
 #ifdef CLOD_WITH_OPENHAPTICS
 #include "clod_haptics/device/openhaptics_device.h"
 #endif

@@ -1,4 +1,4 @@
-#include "clod_haptics/device/bag_replay.h"
+#include "clod_haptics/ros/bag_replay.h"
 
 #include <geometry_msgs/PoseStamped.h>
 #include <sensor_msgs/JointState.h>
@@ -11,7 +11,7 @@
 #include <stdexcept>
 #include <thread>
 
-#include "clod_haptics/device/pose_msg.h"
+#include "clod_haptics/ros/pose_msg.h"
 
 namespace clod_haptics {
 namespace device {

@@ -1,4 +1,4 @@
-#include "clod_haptics/device/bag_source.h"
+#include "clod_haptics/ros/bag_source.h"
 
 #include <geometry_msgs/PoseStamped.h>
 #include <rosbag/bag.h>

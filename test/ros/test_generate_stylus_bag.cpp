@@ -7,7 +7,7 @@
 
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/mesh_loader.h"
-#include "clod_haptics/device/bag_source.h"
+#include "clod_haptics/ros/bag_source.h"
 #include "clod_haptics/test_config.h"
 #include "../rostest/run_command.h"
 
