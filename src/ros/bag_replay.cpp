@@ -118,27 +118,38 @@ BagReplay::BagReplay(ros::NodeHandle nh, ros::NodeHandle pnh)
 }
 
 void BagReplay::run() {
-  using Clock = std::chrono::steady_clock;
+  publishReleasedButton();
+  waitForSubscribers();
+  std::this_thread::sleep_for(std::chrono::duration<double>(params_.startDelay));
+  const auto start = Clock::now();
+  const std::uint64_t passes = play(start);
+  reportDone(std::chrono::duration<double>(Clock::now() - start).count(), passes);
+  if (ros::ok()) std::this_thread::sleep_for(std::chrono::duration<double>(params_.exitDelay));
+}
+
+void BagReplay::publishReleasedButton() {
   // A recording has no buttons: publish "released" once (the bridge publishes on change).
   sensor_msgs::Joy button;
   button.header.stamp = ros::Time::now();
   button.header.frame_id = params_.frameId;
   button.buttons = {0, 0};
   buttonPub_.publish(button);
+}
 
-  if (params_.waitForSubscribers > 0) {
-    const auto deadline = Clock::now() + std::chrono::duration<double>(params_.waitTimeout);
-    while (ros::ok() && posePub_.getNumSubscribers() < static_cast<std::uint32_t>(params_.waitForSubscribers) &&
-           Clock::now() < deadline) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    if (posePub_.getNumSubscribers() < static_cast<std::uint32_t>(params_.waitForSubscribers)) {
-      ROS_WARN("bag_replay: %u of %d subscribers on %s after %.1f s; starting anyway", posePub_.getNumSubscribers(),
-               params_.waitForSubscribers, posePub_.getTopic().c_str(), params_.waitTimeout);
-    }
+void BagReplay::waitForSubscribers() {
+  if (params_.waitForSubscribers <= 0) return;
+  const auto wanted = static_cast<std::uint32_t>(params_.waitForSubscribers);
+  const auto deadline = Clock::now() + std::chrono::duration<double>(params_.waitTimeout);
+  while (ros::ok() && posePub_.getNumSubscribers() < wanted && Clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
-  std::this_thread::sleep_for(std::chrono::duration<double>(params_.startDelay));
+  if (posePub_.getNumSubscribers() < wanted) {
+    ROS_WARN("bag_replay: %u of %d subscribers on %s after %.1f s; starting anyway", posePub_.getNumSubscribers(),
+             params_.waitForSubscribers, posePub_.getTopic().c_str(), params_.waitTimeout);
+  }
+}
 
+std::uint64_t BagReplay::play(Clock::time_point start) {
   const StylusSamples& samples = trajectory_.samples();
   const bool haveJoints = !motion_.joints.empty();
   // Joint states at the recorded joint rate at most (they are not on the haptic path).
@@ -148,7 +159,6 @@ void BagReplay::run() {
           : 0.0;
   geometry_msgs::PoseStamped pose;
   pose.header.frame_id = params_.frameId;
-  const auto start = Clock::now();
   double passOffset = 0.0;  // recorded seconds played by earlier passes
   std::uint64_t passes = 0;
   do {
@@ -164,12 +174,7 @@ void BagReplay::run() {
       posePub_.publish(pose);
       ++published_;
       if (haveJoints && s.time >= nextJoint) {
-        const JointSample j = interpolateJoints(motion_.joints, s.time);
-        sensor_msgs::JointState joints;
-        joints.header.stamp = pose.header.stamp;
-        joints.name = j.names;
-        joints.position = j.positions;
-        jointPub_.publish(joints);
+        publishJoints(s.time, pose.header.stamp);
         nextJoint = s.time + jointPeriod;
       }
     }
@@ -177,8 +182,19 @@ void BagReplay::run() {
     // The next pass starts one sample period after this one's last sample.
     passOffset += trajectory_.duration() + (params_.rate > 0.0 ? 1.0 / params_.rate : 0.0);
   } while (params_.loop && ros::ok());
+  return passes;
+}
 
-  const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+void BagReplay::publishJoints(double t, const ros::Time& stamp) {
+  const JointSample j = interpolateJoints(motion_.joints, t);
+  sensor_msgs::JointState joints;
+  joints.header.stamp = stamp;
+  joints.name = j.names;
+  joints.position = j.positions;
+  jointPub_.publish(joints);
+}
+
+void BagReplay::reportDone(double elapsed, std::uint64_t passes) {
   char summary[256];
   std::snprintf(summary, sizeof(summary),
                 "bag_replay: published %llu poses in %.2f s (%.0f Hz achieved, %.0f Hz intended), %llu pass(es)%s",
@@ -195,7 +211,6 @@ void BagReplay::run() {
   std_msgs::UInt64 done;
   done.data = published_;
   donePub_.publish(done);
-  if (ros::ok()) std::this_thread::sleep_for(std::chrono::duration<double>(params_.exitDelay));
 }
 
 }  // namespace device

@@ -2,6 +2,8 @@
 
 #include <ros/ros.h>
 
+#include <chrono>
+#include <cstdint>
 #include <string>
 
 #include "clod_haptics/device/stylus_trajectory.h"
@@ -58,6 +60,19 @@ class BagReplay {
   std::uint64_t published() const { return published_; }
 
  private:
+  using Clock = std::chrono::steady_clock;
+
+  /** \brief Publishes the button state once: a recording has none, so "released". */
+  void publishReleasedButton();
+  /** \brief Waits up to ~wait_timeout for ~wait_for_subscribers pose subscribers (a warning if fewer came). */
+  void waitForSubscribers();
+  /** \brief Publishes the poses (and joints) on the recorded schedule from start; returns the passes played. */
+  std::uint64_t play(Clock::time_point start);
+  /** \brief Publishes the joint angles at recorded time t. */
+  void publishJoints(double t, const ros::Time& stamp);
+  /** \brief Logs the summary and publishes ~done. */
+  void reportDone(double elapsed, std::uint64_t passes);
+
   ros::NodeHandle nh_;
   ros::NodeHandle pnh_;
   BagReplayParams params_;
