@@ -61,7 +61,7 @@ namespace {
 // The pseudo-normal of q's feature on triangle t, or the face normal where it is zero.
 Vec3 featureNormal(const TriangleMesh& mesh, const Vec3& p, std::uint32_t t) noexcept {
   TriangleRegion region;
-  closestPointAndRegion(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), region);
+  closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), &region);
   const Vec3 pn = pseudoNormal(mesh, t, region);
   return pn.allFinite() && !pn.isZero(0.0) ? pn : mesh.normals[t];
 }

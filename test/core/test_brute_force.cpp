@@ -164,7 +164,7 @@ void expectSignsMatchTruth(const TriangleMesh& mesh, std::uint64_t seed, std::si
     const ContactResult c = bruteForceQuery(mesh, p, 10.0);  // always a contact: the nearest feature
     ASSERT_TRUE(c.contact);
     TriangleRegion region;
-    closestPointAndRegion(p, mesh.vertex(c.triangle, 0), mesh.vertex(c.triangle, 1), mesh.vertex(c.triangle, 2), region);
+    closestPointOnTriangle(p, mesh.vertex(c.triangle, 0), mesh.vertex(c.triangle, 1), mesh.vertex(c.triangle, 2), &region);
     ASSERT_EQ(c.inside, truth) << "probe " << p.transpose() << " feature " << int(region.feature);
     ASSERT_EQ(pointBehindSurface(mesh, p, std::uint32_t(c.triangle), c.point), truth);
     ++checked;

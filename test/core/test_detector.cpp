@@ -217,8 +217,9 @@ Counts compareRange(const TriangleMesh& mesh, const ClodDetector& det, const std
     if (paper.contact && !sane(paper, p, r, tolAbs + tol)) ++k.badResult;
     if (ref && !paper.contact) {
       const std::size_t t = static_cast<std::size_t>(bf[i].triangle);
-      TriangleFeature feature;
-      closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), &feature);
+      TriangleRegion region;
+      closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), &region);
+      const TriangleFeature feature = region.feature;
       if (feature != TriangleFeature::Face) {
         ++k.paperMissEdge;
       } else if (minBarycentric(mesh, t, bf[i].point) <= 1e-9) {

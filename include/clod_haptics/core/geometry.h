@@ -12,15 +12,6 @@ namespace clod_haptics {
 enum class TriangleFeature : std::uint8_t { Face, Edge, Vertex };
 
 /**
- * \brief Closest point on triangle (a, b, c) to p, exact in double precision for every point,
- * including those whose closest point is on an edge or a vertex. Zero-area triangles are handled
- * as their longest edge (never NaN).
- * \param feature if not null, receives the feature the closest point lies on.
- */
-inline Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,
-                                   TriangleFeature* feature = nullptr);
-
-/**
  * \brief Which feature of a triangle a closest point lies on, and which one: the region the
  * inside/outside test needs (the pseudo-normal of that feature).
  */
@@ -30,11 +21,15 @@ struct TriangleRegion {
 };
 
 /**
- * \brief The closest point of closestPointOnTriangle (the same arithmetic, the same point) and its region.
- * A point computed on an edge that lands on an end (parameter 0 or 1) is reported as that vertex.
- * Not inline: the detector's hot loop calls the inline version; this one runs once per answer.
+ * \brief Closest point on triangle (a, b, c) to p, exact in double precision for every point,
+ * including those whose closest point is on an edge or a vertex. Zero-area triangles are handled
+ * as their closest edge (never NaN). Inline: the detector's hot loop calls it with region null, and
+ * the region's bookkeeping then compiles away.
+ * \param region if not null, receives the feature the closest point lies on; a point computed on an
+ * edge that lands on an end (parameter 0 or 1) is reported as that vertex.
  */
-Vec3 closestPointAndRegion(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, TriangleRegion& region);
+inline Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,
+                                   TriangleRegion* region = nullptr);
 
 /** \brief Closest point on segment [a, b] to p; a zero-length segment gives a. */
 inline Vec3 closestPointOnSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
@@ -82,67 +77,102 @@ inline double squaredDistanceToBox(const Vec3& p, const Vec3& lo, const Vec3& hi
 
 namespace detail {
 
+// The region of the point at parameter t on edge `edge`, t running from vertex `from` (0) to `to` (1).
+inline void setEdgeRegion(TriangleRegion* region, double t, std::uint8_t from, std::uint8_t to, std::uint8_t edge) {
+  if (!region) return;
+  if (t <= 0.0) {
+    *region = {TriangleFeature::Vertex, from};
+  } else if (t >= 1.0) {
+    *region = {TriangleFeature::Vertex, to};
+  } else {
+    *region = {TriangleFeature::Edge, edge};
+  }
+}
+
+inline void setVertexRegion(TriangleRegion* region, std::uint8_t vertex) {
+  if (region) *region = {TriangleFeature::Vertex, vertex};
+}
+
+// closestPointOnSegment with its parameter t.
+inline Vec3 onSegment(const Vec3& p, const Vec3& a, const Vec3& b, double& t) {
+  const Vec3 ab = b - a;
+  const double len2 = ab.squaredNorm();
+  t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+  return len2 > 0.0 ? Vec3(a + t * ab) : a;
+}
+
 // A zero-area triangle is a segment (or a point): its closest point is on one of its edges.
-inline Vec3 closestOnEdges(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, TriangleFeature* feature) {
-  const Vec3 q0 = closestPointOnSegment(p, a, b);
-  const Vec3 q1 = closestPointOnSegment(p, b, c);
-  const Vec3 q2 = closestPointOnSegment(p, c, a);
+inline Vec3 closestOnEdges(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, TriangleRegion* region) {
+  double t0, t1, t2;
+  const Vec3 q0 = onSegment(p, a, b, t0);
+  const Vec3 q1 = onSegment(p, b, c, t1);
+  const Vec3 q2 = onSegment(p, c, a, t2);
   const double d0 = (p - q0).squaredNorm(), d1 = (p - q1).squaredNorm(), d2 = (p - q2).squaredNorm();
-  if (feature) *feature = TriangleFeature::Edge;
-  if (d0 <= d1 && d0 <= d2) return q0;
-  return d1 <= d2 ? q1 : q2;
+  if (d0 <= d1 && d0 <= d2) {
+    setEdgeRegion(region, t0, 0, 1, 0);
+    return q0;
+  }
+  if (d1 <= d2) {
+    setEdgeRegion(region, t1, 1, 2, 1);
+    return q1;
+  }
+  setEdgeRegion(region, t2, 2, 0, 2);
+  return q2;
 }
 
 }  // namespace detail
 
 // Ericson, Real-Time Collision Detection, 5.1.5: Voronoi regions of vertices, edges, then the face.
-inline Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, TriangleFeature* feature) {
+inline Vec3 closestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, TriangleRegion* region) {
   const Vec3 ab = b - a, ac = c - a, ap = p - a;
   const double d1 = ab.dot(ap), d2 = ac.dot(ap);
   if (d1 <= 0.0 && d2 <= 0.0) {
-    if (feature) *feature = TriangleFeature::Vertex;
+    detail::setVertexRegion(region, 0);
     return a;
   }
   const Vec3 bp = p - b;
   const double d3 = ab.dot(bp), d4 = ac.dot(bp);
   if (d3 >= 0.0 && d4 <= d3) {
-    if (feature) *feature = TriangleFeature::Vertex;
+    detail::setVertexRegion(region, 1);
     return b;
   }
   const double vc = d1 * d4 - d3 * d2;
   if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
     const double den = d1 - d3;
-    if (!(den > 0.0)) return detail::closestOnEdges(p, a, b, c, feature);
-    if (feature) *feature = TriangleFeature::Edge;
-    return a + (d1 / den) * ab;
+    if (!(den > 0.0)) return detail::closestOnEdges(p, a, b, c, region);
+    const double t = d1 / den;
+    detail::setEdgeRegion(region, t, 0, 1, 0);
+    return a + t * ab;
   }
   const Vec3 cp = p - c;
   const double d5 = ab.dot(cp), d6 = ac.dot(cp);
   if (d6 >= 0.0 && d5 <= d6) {
-    if (feature) *feature = TriangleFeature::Vertex;
+    detail::setVertexRegion(region, 2);
     return c;
   }
   const double vb = d5 * d2 - d1 * d6;
   if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
     const double den = d2 - d6;
-    if (!(den > 0.0)) return detail::closestOnEdges(p, a, b, c, feature);
-    if (feature) *feature = TriangleFeature::Edge;
-    return a + (d2 / den) * ac;
+    if (!(den > 0.0)) return detail::closestOnEdges(p, a, b, c, region);
+    const double t = d2 / den;
+    detail::setEdgeRegion(region, t, 0, 2, 2);  // edge 2 runs from c to a; t is measured from a
+    return a + t * ac;
   }
   const double va = d3 * d6 - d5 * d4;
   if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
     const double den = (d4 - d3) + (d5 - d6);
-    if (!(den > 0.0)) return detail::closestOnEdges(p, a, b, c, feature);
-    if (feature) *feature = TriangleFeature::Edge;
-    return b + ((d4 - d3) / den) * (c - b);
+    if (!(den > 0.0)) return detail::closestOnEdges(p, a, b, c, region);
+    const double t = (d4 - d3) / den;
+    detail::setEdgeRegion(region, t, 1, 2, 1);
+    return b + t * (c - b);
   }
   const double sum = va + vb + vc;
   // sum is twice the squared area times a positive factor; a tiny one means a sliver whose face
   // coordinates would be noise, so the edges answer instead.
   const double scale = ab.squaredNorm() * ac.squaredNorm();
-  if (!(sum > 1e-14 * scale) || !std::isfinite(sum)) return detail::closestOnEdges(p, a, b, c, feature);
+  if (!(sum > 1e-14 * scale) || !std::isfinite(sum)) return detail::closestOnEdges(p, a, b, c, region);
   const double denom = 1.0 / sum;
-  if (feature) *feature = TriangleFeature::Face;
+  if (region) *region = {TriangleFeature::Face, 0};
   return a + ab * (vb * denom) + ac * (vc * denom);
 }
 
