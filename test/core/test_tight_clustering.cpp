@@ -17,18 +17,12 @@
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/core/tight_clustering.h"
-#include "clod_haptics/core/tight_placement.h"
 #include "test_helpers.h"
 
 namespace {
 
 using namespace clod_haptics;
 using clod_test::coverageProblems;
-
-std::shared_ptr<const SpherePlacement> placementNamed(const std::string& name) {
-  if (name == "tight") return std::make_shared<TightPlacement>();
-  return std::make_shared<PaperPlacement>();
-}
 
 // Brute-force signed distance: the nearest point over all triangles, negative on the outer side of
 // the nearest triangle's face normal. ambiguous is set when triangles within a hair of the nearest
@@ -58,29 +52,27 @@ TEST(TightClustering, CoverageAndOneSpherePerTriangleOnEverySharedMesh) {
   ASSERT_GE(meshes.size(), 6u);
   for (const auto& path : meshes) {
     const auto mesh = clod_test::loadNormalized(path);
-    for (const std::string placement : {"paper", "tight"}) {
-      const ClodBuilder builder(mesh, placementNamed(placement), makeClustering("tight"));
-      for (double d : {0.0, 0.02, 0.04, 0.08}) {
-        if (d == 0.0 && mesh->size() > 30000) continue;  // one sphere per triangle: seconds, nothing new
-        SCOPED_TRACE(clod_test::baseName(path) + " placement " + placement + " d=" + std::to_string(d));
-        const ClodSphereSet set = builder.build(d);
-        const auto problems = coverageProblems(*mesh, set);
-        EXPECT_TRUE(problems.empty()) << clod_test::join(problems);
-        EXPECT_EQ(set.stats.spheres, set.size());
-        // Each triangle is listed by exactly one sphere (a partition of the surface).
-        std::vector<int> listed(mesh->size(), 0);
-        for (std::uint32_t t : set.triangles) ++listed[t];
-        for (std::size_t t = 0; t < mesh->size(); ++t) ASSERT_EQ(listed[t], 1) << "triangle " << t;
-        if (d == 0.0) {
-          EXPECT_EQ(set.size(), mesh->size()) << "d = 0: one sphere per triangle";
-        }
-        // Radii stay tight: some listed vertex lies on each sphere.
-        for (std::size_t i = 0; i < set.size(); ++i) {
-          double far = 0.0;
-          for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t)
-            for (int v = 0; v < 3; ++v) far = std::max(far, (mesh->vertex(*t, v) - set.centres[i]).norm());
-          ASSERT_NEAR(set.radii[i], far, 1e-12) << "sphere " << i;
-        }
+    const ClodBuilder builder(mesh, std::make_shared<PaperPlacement>(), makeClustering("tight"));
+    for (double d : {0.0, 0.02, 0.04, 0.08}) {
+      if (d == 0.0 && mesh->size() > 30000) continue;  // one sphere per triangle: seconds, nothing new
+      SCOPED_TRACE(clod_test::baseName(path) + " d=" + std::to_string(d));
+      const ClodSphereSet set = builder.build(d);
+      const auto problems = coverageProblems(*mesh, set);
+      EXPECT_TRUE(problems.empty()) << clod_test::join(problems);
+      EXPECT_EQ(set.stats.spheres, set.size());
+      // Each triangle is listed by exactly one sphere (a partition of the surface).
+      std::vector<int> listed(mesh->size(), 0);
+      for (std::uint32_t t : set.triangles) ++listed[t];
+      for (std::size_t t = 0; t < mesh->size(); ++t) ASSERT_EQ(listed[t], 1) << "triangle " << t;
+      if (d == 0.0) {
+        EXPECT_EQ(set.size(), mesh->size()) << "d = 0: one sphere per triangle";
+      }
+      // Radii stay tight: some listed vertex lies on each sphere.
+      for (std::size_t i = 0; i < set.size(); ++i) {
+        double far = 0.0;
+        for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t)
+          for (int v = 0; v < 3; ++v) far = std::max(far, (mesh->vertex(*t, v) - set.centres[i]).norm());
+        ASSERT_NEAR(set.radii[i], far, 1e-12) << "sphere " << i;
       }
     }
   }
@@ -107,24 +99,22 @@ TEST(TightClustering, CapOfEverySphereHoldsAtMostABallOfRadiusD) {
   // than one triangle, h = R - rho and h^2 (3R - h) / 4 <= d^3.
   for (const std::string name : {"head.off", "elephant.off"}) {
     const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
-    for (const std::string placement : {"paper", "tight"}) {
-      const ClodBuilder builder(mesh, placementNamed(placement), makeClustering("tight"));
-      for (double d : {0.02, 0.05}) {
-        SCOPED_TRACE(name + " placement " + placement + " d=" + std::to_string(d));
-        const ClodSphereSet set = builder.build(d);
-        std::size_t checked = 0;
-        for (std::size_t i = 0; i < set.size(); ++i) {
-          if (set.end(i) - set.begin(i) < 2) continue;
-          bool ambiguous = false;
-          const double rho = referenceSignedDistance(*mesh, set.centres[i], ambiguous);
-          if (ambiguous) continue;
-          const double r = set.radii[i];
-          const double h = std::clamp(r - rho, 0.0, 2.0 * r);
-          EXPECT_LE(0.25 * h * h * (3.0 * r - h), d * d * d * (1.0 + 1e-9)) << "sphere " << i;
-          ++checked;
-        }
-        EXPECT_GT(checked, 0u);
+    const ClodBuilder builder(mesh, std::make_shared<PaperPlacement>(), makeClustering("tight"));
+    for (double d : {0.02, 0.05}) {
+      SCOPED_TRACE(name + " d=" + std::to_string(d));
+      const ClodSphereSet set = builder.build(d);
+      std::size_t checked = 0;
+      for (std::size_t i = 0; i < set.size(); ++i) {
+        if (set.end(i) - set.begin(i) < 2) continue;
+        bool ambiguous = false;
+        const double rho = referenceSignedDistance(*mesh, set.centres[i], ambiguous);
+        if (ambiguous) continue;
+        const double r = set.radii[i];
+        const double h = std::clamp(r - rho, 0.0, 2.0 * r);
+        EXPECT_LE(0.25 * h * h * (3.0 * r - h), d * d * d * (1.0 + 1e-9)) << "sphere " << i;
+        ++checked;
       }
+      EXPECT_GT(checked, 0u);
     }
   }
 }
@@ -132,7 +122,7 @@ TEST(TightClustering, CapOfEverySphereHoldsAtMostABallOfRadiusD) {
 TEST(TightClustering, ExactDetectionEqualsBruteForce) {
   for (const std::string name : {"head.off", "mannequin-devil.off", "mesh_with_border.off"}) {
     const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
-    const ClodBuilder builder(mesh, std::make_shared<TightPlacement>(), makeClustering("tight"));
+    const ClodBuilder builder(mesh, std::make_shared<PaperPlacement>(), makeClustering("tight"));
     std::vector<Vec3> probes = nearSurfaceProbes(*mesh, 1500, 0.03, 21);
     const std::vector<Vec3> uniform = uniformProbes(*mesh, 500, 0.03, 22);
     probes.insert(probes.end(), uniform.begin(), uniform.end());

@@ -27,8 +27,7 @@ namespace clod_haptics {
  * A node's centre is the candidate with the least excess among the mean of the placement's points
  * on its triangles and the mean of the triangles' centroids pushed inward along their mean normal by
  * 1, 3/4, 1/2, 1/4 and 1/8 of the mean depth of those points below their triangles. Any placement
- * works; on the shared meshes PaperPlacement (points a quarter of the way to the opposite triangle)
- * gave as tight or tighter sets than TightPlacement (half way to the first surface behind).
+ * works (the default is PaperPlacement: points a quarter of the way to the opposite triangle).
  * The builder still sets each radius to reach every vertex of every listed triangle, so coverage
  * holds whatever the centres are.
  *
