@@ -117,8 +117,7 @@ class CellTable {
 
 // The domain check both strategies share; sizes labels and returns the number of points.
 std::size_t prepare(const std::vector<Vec3>& points, double d, std::vector<std::uint32_t>& labels) {
-  if (!std::isfinite(d) || d < 0.0)
-    throw InvalidParameter("clustering distance must be finite and >= 0, got " + std::to_string(d));
+  requireNonNegative(d, "clustering distance");
   labels.assign(points.size(), 0);
   return points.size();
 }
@@ -462,6 +461,11 @@ void linkCloserThan(const std::vector<Vec3>& points, double d, unsigned threads,
 }
 
 }  // namespace
+
+void requireNonNegative(double value, const char* what) {
+  if (!std::isfinite(value) || value < 0.0)
+    throw InvalidParameter(std::string(what) + " must be finite and >= 0, got " + std::to_string(value));
+}
 
 std::uint32_t SingleLinkClustering::cluster(const std::vector<Vec3>& points, double d,
                                             std::vector<std::uint32_t>& labels) const {

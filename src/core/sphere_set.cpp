@@ -17,11 +17,6 @@ constexpr std::size_t kMinPointsPerThread = 8192;  // below this per thread, bui
 
 }  // namespace
 
-void requireNonNegative(double value, const char* what) {
-  if (!std::isfinite(value) || value < 0.0)
-    throw InvalidParameter(std::string(what) + " must be finite and >= 0, got " + std::to_string(value));
-}
-
 std::vector<std::uint32_t> firstSphereOfTriangles(const ClodSphereSet& set, std::size_t triangles) {
   std::vector<std::uint32_t> first(triangles, std::numeric_limits<std::uint32_t>::max());
   for (std::size_t s = set.size(); s-- > 0;)  // backwards, so the lowest sphere index stays

@@ -18,11 +18,6 @@ namespace {
 
 constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
 
-void requireDistance(double d) {
-  if (!std::isfinite(d) || d < 0.0)
-    throw InvalidParameter("clustering distance must be finite and >= 0, got " + std::to_string(d));
-}
-
 // Splits items[begin, end) in two at the mean of their keys along the keys' principal axis; returns
 // the first index of the second half, always strictly inside (begin, end) for end - begin >= 2.
 // Depends only on the items and their keys, never on d: the tree is the same for every d.
@@ -164,7 +159,7 @@ double SurfaceDistance::signedDistance(const Vec3& p, double bound) const {
 
 std::uint32_t TightClustering::cluster(const std::vector<Vec3>& points, double d,
                                        std::vector<std::uint32_t>& labels) const {
-  requireDistance(d);
+  requireNonNegative(d, "clustering distance");
   const std::size_t n = points.size();
   labels.assign(n, 0);
   if (n == 0) return 0;
@@ -203,7 +198,7 @@ std::uint32_t TightClustering::cluster(const std::vector<Vec3>& points, double d
 std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::vector<Vec3>& points,
                                            const std::vector<std::uint32_t>& wrapped, double d,
                                            std::vector<std::uint32_t>& labels, std::vector<Vec3>& centres) const {
-  requireDistance(d);
+  requireNonNegative(d, "clustering distance");
   centres.clear();
   const std::size_t n = points.size();
   labels.assign(n, 0);

@@ -10,6 +10,12 @@
 namespace clod_haptics {
 
 /**
+ * \brief Throws InvalidParameter unless value is finite and not negative; what names the parameter. The one
+ * check of a clustering distance (every Clustering, ClodBuilder::build) and of other distances taken from users.
+ */
+void requireNonNegative(double value, const char* what);
+
+/**
  * \brief Strategy that groups sphere centres into clusters for a clustering distance d.
  * Labels are 0..k-1, numbered in the order of each cluster's first point.
  */

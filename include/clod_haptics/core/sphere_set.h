@@ -102,7 +102,4 @@ std::vector<std::uint32_t> firstSphereOfTriangles(const ClodSphereSet& set, std:
  */
 std::string fitProblem(const TriangleMesh& mesh, const ClodSphereSet& set, double relativeTolerance = 1e-12);
 
-/** \brief Throws InvalidParameter unless d is finite and not negative; what names the parameter. */
-void requireNonNegative(double value, const char* what);
-
 }  // namespace clod_haptics
