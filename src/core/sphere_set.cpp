@@ -14,6 +14,227 @@ namespace clod_haptics {
 namespace {
 
 constexpr std::size_t kMinPointsPerThread = 8192;  // below this per thread, build's passes stay on one
+constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+
+// The placed points in ascending order of the triangle they wrap, by a counting sort over the triangles:
+// after sort(), triangle t's points are byTriangle[begin(t), ends[t]).
+struct PointsByTriangle {
+  PointsByTriangle(std::size_t points, std::size_t triangles) : byTriangle(points), ends(triangles + 1, 0) {}
+  void sort(const std::vector<std::uint32_t>& wrapped) {
+    const std::size_t triangles = ends.size() - 1;
+    for (const std::uint32_t t : wrapped) ++ends[t + 1];
+    for (std::size_t t = 0; t < triangles; ++t) ends[t + 1] += ends[t];
+    for (std::size_t i = 0; i < wrapped.size(); ++i) byTriangle[ends[wrapped[i]]++] = static_cast<std::uint32_t>(i);
+  }
+  std::uint32_t begin(std::size_t t) const { return t == 0 ? std::uint32_t{0} : ends[t - 1]; }
+
+  std::vector<std::uint32_t> byTriangle;
+  std::vector<std::uint32_t> ends;  // one past triangle t's points in byTriangle
+};
+
+// Triangle lists, ascending and unique per cluster, in O(n) without sorting: the points are visited in
+// ascending order of the triangle they wrap, so appending each to its cluster keeps every list ascending,
+// and a duplicate is always the list's last entry. One pass counts, one fills the exactly sized array.
+// The triangles are split among the parts (so a duplicate stays within one part); each part counts and
+// fills its clusters' entries after those of the parts before.
+class TriangleLists {
+ public:
+  TriangleLists(const PointsByTriangle& sorted, const std::vector<std::uint32_t>& labels, std::uint32_t k,
+                unsigned parts)
+      : sorted_(sorted), labels_(labels), k_(k), parts_(parts), last_(parts), count_(parts) {}
+
+  // Counts the entries of each part's clusters.
+  void count() {
+    detail::runParallel(parts_, [&](unsigned j) {
+      count_[j].assign(k_, 0);
+      forEachEntry(j, [&](std::uint32_t c, std::uint32_t) { ++count_[j][c]; });
+    });
+  }
+  // Sets the offsets from the counts; each part's count becomes where its entries of the cluster start.
+  void place(std::vector<std::uint32_t>& offsets) {
+    for (std::uint32_t c = 0; c < k_; ++c) {
+      std::uint32_t start = offsets[c];
+      for (unsigned j = 0; j < parts_; ++j) {
+        const std::uint32_t entries = count_[j][c];
+        count_[j][c] = start;
+        start += entries;
+      }
+      offsets[c + 1] = start;
+    }
+  }
+  // Writes the entries to the places place() set.
+  void fill(std::vector<std::uint32_t>& triangles) {
+    detail::runParallel(parts_, [&](unsigned j) {
+      std::vector<std::uint32_t>& next = count_[j];
+      forEachEntry(j, [&](std::uint32_t c, std::uint32_t t) { triangles[next[c]++] = t; });
+    });
+  }
+
+ private:
+  // Calls add(cluster, triangle) once per entry of part j's triangles, in ascending triangle order.
+  template <class Add>
+  void forEachEntry(unsigned j, Add&& add) {
+    std::vector<std::uint32_t>& last = last_[j];  // the last triangle appended to each cluster
+    last.assign(k_, kNone);
+    const std::size_t triangles = sorted_.ends.size() - 1;
+    for (std::size_t t = triangles * j / parts_; t < triangles * (j + 1) / parts_; ++t)
+      for (std::uint32_t p = sorted_.begin(t); p < sorted_.ends[t]; ++p) {
+        const std::uint32_t c = labels_[sorted_.byTriangle[p]];
+        if (last[c] == t) continue;
+        last[c] = static_cast<std::uint32_t>(t);
+        add(c, static_cast<std::uint32_t>(t));
+      }
+  }
+
+  const PointsByTriangle& sorted_;
+  const std::vector<std::uint32_t>& labels_;
+  std::uint32_t k_;
+  unsigned parts_;
+  std::vector<std::vector<std::uint32_t>> last_, count_;  // per part and cluster
+};
+
+// Fits one sphere per cluster into a set: its centre, the triangles its members wrap, and a radius that
+// reaches every vertex of them. Large inputs split the passes over two or more threads (one pass is one
+// core's worth of memory traffic); every value is computed as on one thread, in the same order where the
+// order matters.
+class SphereFitter {
+ public:
+  SphereFitter(const TriangleMesh& mesh, const std::vector<Vec3>& centres, const std::vector<std::uint32_t>& wrapped,
+               const std::vector<std::uint32_t>& labels, std::uint32_t k, ClodSphereSet& set)
+      : mesh_(mesh),
+        centres_(centres),
+        wrapped_(wrapped),
+        labels_(labels),
+        k_(k),
+        points_(centres.size()),
+        threads_(detail::threadsFor(points_, 0, kMinPointsPerThread)),
+        set_(set) {
+    set.centres.assign(k, Vec3::Zero());
+    set.radii.assign(k, 0.0);
+    set.offsets.assign(k + 1, 0);
+  }
+
+  // Centres and lists when every cluster has one member (d = 0, or no two centres closer than d): its
+  // list is the member's triangle and its centre the member's (or the one the strategy chose).
+  void fitSingletons(std::vector<Vec3>& chosen) {
+    const bool chose = chosen.size() == k_;
+    if (chose) set_.centres = std::move(chosen);
+    std::iota(set_.offsets.begin(), set_.offsets.end(), 0u);
+    set_.triangles.resize(k_);
+    detail::runParallel(threads_, [&](unsigned j) {
+      for (std::size_t i = points_ * j / threads_; i < points_ * (j + 1) / threads_; ++i) {
+        const std::uint32_t c = labels_[i];
+        set_.triangles[c] = wrapped_[i];
+        if (!chose) set_.centres[c] = centres_[i];
+      }
+    });
+  }
+
+  // Centres and lists in general: the means beside the sort of the points by triangle, then the lists
+  // (several parts only with few clusters per point: each part holds two arrays of one entry per cluster).
+  void fitClusters(std::vector<Vec3>& chosen) {
+    PointsByTriangle sorted(points_, mesh_.size());
+    if (threads_ > 1) {
+      detail::runParallel(2, [&](unsigned t) { t ? sorted.sort(wrapped_) : meanCentres(chosen); });
+    } else {
+      meanCentres(chosen);
+      sorted.sort(wrapped_);
+    }
+    TriangleLists lists(sorted, labels_, k_, k_ <= points_ / 8 ? threads_ : 1);
+    lists.count();
+    lists.place(set_.offsets);
+    set_.triangles.resize(set_.offsets[k_]);
+    lists.fill(set_.triangles);
+  }
+
+  // Radius: reach every vertex of every listed triangle (the coverage invariant). The list entries are
+  // split among the threads; a cluster's squared radius is the largest over its parts (exact, so the same).
+  void fitRadii() {
+    const std::size_t entries = set_.triangles.size();
+    std::vector<std::pair<std::uint32_t, double>> shared(threads_, {kNone, 0.0});  // a cluster begun in an earlier part
+    detail::runParallel(threads_, [&](unsigned j) {
+      const std::size_t lo = entries * j / threads_, hi = entries * (j + 1) / threads_;
+      if (lo != hi) shared[j] = fitRadiiIn(lo, hi);
+    });
+    for (const auto& [c, r2] : shared)
+      if (c != kNone) set_.radii[c] = std::max(set_.radii[c], r2);
+    for (double& r : set_.radii) r = std::sqrt(r);
+  }
+
+ private:
+  // Each cluster's centre: the one the strategy chose, or the mean of the member centres (summed in point
+  // order, as one thread would: one thread does all of it).
+  void meanCentres(std::vector<Vec3>& chosen) {
+    if (chosen.size() == k_) {
+      set_.centres = std::move(chosen);
+      return;
+    }
+    std::vector<std::uint32_t> members(k_, 0);
+    for (std::size_t i = 0; i < points_; ++i) {
+      set_.centres[labels_[i]] += centres_[i];
+      ++members[labels_[i]];
+    }
+    for (std::uint32_t c = 0; c < k_; ++c) set_.centres[c] /= static_cast<double>(members[c]);
+  }
+
+  // The squared radii over list entries [lo, hi): set for the clusters that start there, returned for
+  // the one begun before lo (kNone when there is none).
+  std::pair<std::uint32_t, double> fitRadiiIn(std::size_t lo, std::size_t hi) {
+    const std::vector<std::uint32_t>& offsets = set_.offsets;
+    std::pair<std::uint32_t, double> shared{kNone, 0.0};
+    auto c = static_cast<std::uint32_t>(std::upper_bound(offsets.begin(), offsets.end(), lo) - offsets.begin() - 1);
+    for (; c < k_ && offsets[c] < hi; ++c) {
+      const double r2 =
+          squaredReach(c, std::max<std::size_t>(lo, offsets[c]), std::min<std::size_t>(hi, offsets[c + 1]));
+      if (offsets[c] < lo)
+        shared = {c, r2};
+      else
+        set_.radii[c] = r2;
+    }
+    return shared;
+  }
+
+  // Squared distance from cluster c's centre to the farthest vertex of list entries [from, to).
+  double squaredReach(std::uint32_t c, std::size_t from, std::size_t to) const {
+    constexpr std::size_t kAhead = 16;
+    const std::vector<std::uint32_t>& list = set_.triangles;
+    double r2 = 0.0;
+    for (std::size_t e = from; e < to; ++e) {
+      // The triangles are scattered loads, their vertices more so: start both early.
+      if (e + 2 * kAhead < list.size()) __builtin_prefetch(&mesh_.triangles[list[e + 2 * kAhead]]);
+      if (e + kAhead < list.size())
+        for (int v = 0; v < 3; ++v) __builtin_prefetch(&mesh_.vertex(list[e + kAhead], v));
+      for (int v = 0; v < 3; ++v) r2 = std::max(r2, (mesh_.vertex(list[e], v) - set_.centres[c]).squaredNorm());
+    }
+    return r2;
+  }
+
+  const TriangleMesh& mesh_;
+  const std::vector<Vec3>& centres_;
+  const std::vector<std::uint32_t>& wrapped_;
+  const std::vector<std::uint32_t>& labels_;
+  std::uint32_t k_;
+  std::size_t points_;
+  unsigned threads_;
+  ClodSphereSet& set_;
+};
+
+// The figures of a built set, but for the clustering time.
+BuildStats statsOf(const ClodSphereSet& set, std::size_t triangles, std::size_t centres,
+                   const PlacementStats& placement) {
+  BuildStats st;
+  const std::size_t k = set.size();
+  st.triangles = triangles;
+  st.centres = centres;
+  st.spheres = k;
+  st.unpaired = placement.unpaired;
+  st.degenerate = placement.degenerate;
+  for (std::size_t c = 0; c < k; ++c)
+    st.maxTrianglesPerSphere = std::max<std::size_t>(st.maxTrianglesPerSphere, set.offsets[c + 1] - set.offsets[c]);
+  st.meanTrianglesPerSphere = k ? static_cast<double>(set.triangles.size()) / k : 0.0;
+  st.placementMs = placement.milliseconds;
+  return st;
+}
 
 }  // namespace
 
@@ -57,152 +278,14 @@ ClodSphereSet ClodBuilder::build(double d) const {
   set.meshName = mesh.name;
   set.scale = mesh.scale;
   set.distance = d;
-  set.centres.assign(k, Vec3::Zero());
-  set.radii.assign(k, 0.0);
-  set.offsets.assign(k + 1, 0);
-
-  const std::size_t points = centres_.size();
-  // Large inputs split their passes over two or more threads (one pass is one core's worth of memory
-  // traffic); every value is computed as on one thread, in the same order where the order matters.
-  const unsigned threads = detail::threadsFor(points, 0, kMinPointsPerThread);
-
-  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-  if (k == points) {
-    // Every cluster has one member (d = 0, or no two centres closer than d): its list is the member's
-    // triangle and its centre the member's, computed as the general mean below computes it.
-    const bool chose = chosen.size() == k;
-    if (chose) set.centres = std::move(chosen);
-    std::iota(set.offsets.begin(), set.offsets.end(), 0u);
-    set.triangles.resize(k);
-    detail::runParallel(threads, [&](unsigned j) {
-      for (std::size_t i = points * j / threads; i < points * (j + 1) / threads; ++i) {
-        const std::uint32_t c = labels[i];
-        set.triangles[c] = wrapped_[i];
-        if (!chose) set.centres[c] = (Vec3::Zero() + centres_[i]) / 1.0;
-      }
-    });
-  } else {
-    // Mean of the member centres (summed in point order, as one thread would: one thread does all of it),
-    // beside the sort of the points by the triangle they wrap.
-    auto means = [&] {
-      if (chosen.size() == k) {
-        set.centres = std::move(chosen);
-        return;
-      }
-      std::vector<std::uint32_t> members(k, 0);
-      for (std::size_t i = 0; i < points; ++i) {
-        set.centres[labels[i]] += centres_[i];
-        ++members[labels[i]];
-      }
-      for (std::uint32_t c = 0; c < k; ++c) set.centres[c] /= static_cast<double>(members[c]);
-    };
-
-    // Triangle lists, ascending and unique per cluster, in O(n) without sorting: the points are visited in
-    // ascending order of the triangle they wrap (a counting sort over the triangles), so appending each
-    // to its cluster keeps every list ascending, and a duplicate is always the list's last entry. One
-    // pass counts, one fills the exactly sized array.
-    const std::size_t triangles = mesh.size();
-    std::vector<std::uint32_t> byTriangle(points);
-    std::vector<std::uint32_t> ends(triangles + 1, 0);  // ends[t]: one past triangle t's points in byTriangle
-    auto sortByTriangle = [&] {
-      for (std::size_t i = 0; i < points; ++i) ++ends[wrapped_[i] + 1];
-      for (std::size_t t = 0; t < triangles; ++t) ends[t + 1] += ends[t];
-      for (std::size_t i = 0; i < points; ++i) byTriangle[ends[wrapped_[i]]++] = static_cast<std::uint32_t>(i);
-    };
-    auto begins = [&](std::size_t t) { return t == 0 ? std::uint32_t{0} : ends[t - 1]; };
-    if (threads > 1) {
-      detail::runParallel(2, [&](unsigned t) { t ? sortByTriangle() : means(); });
-    } else {
-      means();
-      sortByTriangle();
-    }
-
-    // The lists: the triangles split among the threads (so a duplicate stays within one part); each part
-    // counts and fills its clusters' entries after those of the parts before. Per thread two arrays of
-    // one entry per cluster: only when there are few clusters per point.
-    const unsigned parts = k <= points / 8 ? threads : 1;
-    std::vector<std::vector<std::uint32_t>> last(parts), count(parts);  // per part and cluster
-    // Calls add(cluster, triangle) for the points of part j's triangles in ascending triangle order.
-    auto forEachPoint = [&](unsigned j, auto&& add) {
-      for (std::size_t t = triangles * j / parts; t < triangles * (j + 1) / parts; ++t)
-        for (std::uint32_t p = begins(t); p < ends[t]; ++p) add(labels[byTriangle[p]], static_cast<std::uint32_t>(t));
-    };
-    detail::runParallel(parts, [&](unsigned j) {
-      last[j].assign(k, kNone);  // the last triangle appended to each cluster
-      count[j].assign(k, 0);
-      forEachPoint(j, [&](std::uint32_t c, std::uint32_t t) {
-        if (last[j][c] == t) return;
-        last[j][c] = t;
-        ++count[j][c];
-      });
-    });
-    for (std::uint32_t c = 0; c < k; ++c) {
-      std::uint32_t start = set.offsets[c];
-      for (unsigned j = 0; j < parts; ++j) {
-        const std::uint32_t entries = count[j][c];
-        count[j][c] = start;  // now where part j's entries of cluster c go
-        start += entries;
-      }
-      set.offsets[c + 1] = start;
-    }
-    set.triangles.resize(set.offsets[k]);
-    detail::runParallel(parts, [&](unsigned j) {
-      std::vector<std::uint32_t>& fill = count[j];
-      std::fill(last[j].begin(), last[j].end(), kNone);
-      forEachPoint(j, [&](std::uint32_t c, std::uint32_t t) {
-        if (last[j][c] == t) return;
-        last[j][c] = t;
-        set.triangles[fill[c]++] = t;
-      });
-    });
-    last.clear();
-    count.clear();
-    std::vector<std::uint32_t>().swap(byTriangle);
-    std::vector<std::uint32_t>().swap(ends);
-  }
-
-  // Radius: reach every vertex of every wrapped triangle (the coverage invariant). The list entries are
-  // split among the threads; a cluster's squared radius is the largest over its parts (exact, so the same).
-  const std::size_t entries = set.triangles.size();
-  constexpr std::size_t kAhead = 16;
-  std::vector<std::pair<std::uint32_t, double>> shared(threads, {kNone, 0.0});  // a cluster begun in an earlier part
-  detail::runParallel(threads, [&](unsigned j) {
-    const std::size_t lo = entries * j / threads, hi = entries * (j + 1) / threads;
-    if (lo == hi) return;
-    std::uint32_t c = static_cast<std::uint32_t>(std::upper_bound(set.offsets.begin(), set.offsets.end(), lo) -
-                                                 set.offsets.begin() - 1);
-    for (; c < k && set.offsets[c] < hi; ++c) {
-      double r2 = 0.0;
-      const std::size_t end = std::min<std::size_t>(hi, set.offsets[c + 1]);
-      for (std::size_t e = std::max<std::size_t>(lo, set.offsets[c]); e < end; ++e) {
-        // The triangles are scattered loads, their vertices more so: start both early.
-        if (e + 2 * kAhead < entries) __builtin_prefetch(&mesh.triangles[set.triangles[e + 2 * kAhead]]);
-        if (e + kAhead < entries)
-          for (int v = 0; v < 3; ++v) __builtin_prefetch(&mesh.vertex(set.triangles[e + kAhead], v));
-        for (int v = 0; v < 3; ++v)
-          r2 = std::max(r2, (mesh.vertex(set.triangles[e], v) - set.centres[c]).squaredNorm());
-      }
-      if (set.offsets[c] < lo)
-        shared[j] = {c, r2};
-      else
-        set.radii[c] = r2;
-    }
-  });
-  for (const auto& [c, r2] : shared)
-    if (c != kNone) set.radii[c] = std::max(set.radii[c], r2);
-  for (double& r : set.radii) r = std::sqrt(r);
-
-  BuildStats& st = set.stats;
-  st.triangles = mesh.size();
-  st.centres = centres_.size();
-  st.spheres = k;
-  st.unpaired = placementStats_.unpaired;
-  st.degenerate = placementStats_.degenerate;
-  for (std::uint32_t c = 0; c < k; ++c)
-    st.maxTrianglesPerSphere = std::max<std::size_t>(st.maxTrianglesPerSphere, set.offsets[c + 1] - set.offsets[c]);
-  st.meanTrianglesPerSphere = k ? static_cast<double>(set.triangles.size()) / k : 0.0;
-  st.placementMs = placementStats_.milliseconds;
-  st.clusteringMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  SphereFitter fitter(mesh, centres_, wrapped_, labels, k, set);
+  if (k == centres_.size())
+    fitter.fitSingletons(chosen);
+  else
+    fitter.fitClusters(chosen);
+  fitter.fitRadii();
+  set.stats = statsOf(set, mesh.size(), centres_.size(), placementStats_);
+  set.stats.clusteringMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return set;
 }
 
@@ -218,7 +301,8 @@ std::string fitProblem(const TriangleMesh& mesh, const ClodSphereSet& set, doubl
     if (set.offsets[i] > set.offsets[i + 1]) return "offsets decrease at sphere " + std::to_string(i);
     const Vec3& c = set.centres[i];
     const double radius = set.radii[i];
-    if (!c.allFinite() || !std::isfinite(radius) || radius < 0.0) return "sphere " + std::to_string(i) + " is not finite";
+    if (!c.allFinite() || !std::isfinite(radius) || radius < 0.0)
+      return "sphere " + std::to_string(i) + " is not finite";
     const double reach = radius * (1.0 + 1e-9) + tolerance;
     for (std::uint32_t k = set.offsets[i]; k < set.offsets[i + 1]; ++k) {
       const std::uint32_t t = set.triangles[k];
