@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <string>
 #include <thread>
 
@@ -17,6 +18,18 @@ namespace clod_haptics {
 namespace {
 
 constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+
+// A node of the tree: the items in [begin, end) of the order its splits leave.
+struct Range {
+  std::uint32_t begin, end;
+};
+
+// 0, 1, ..., n - 1.
+std::vector<std::uint32_t> identity(std::size_t n) {
+  std::vector<std::uint32_t> v(n);
+  std::iota(v.begin(), v.end(), 0u);
+  return v;
+}
 
 // Splits items[begin, end) in two at the mean of their keys along the keys' principal axis; returns
 // the first index of the second half, always strictly inside (begin, end) for end - begin >= 2.
@@ -71,6 +84,285 @@ inline double boxDistance2(const Vec3& p, const double* lo, const double* hi) {
     sum += d > 0.0 ? d * d : 0.0;
   }
   return sum;  // an empty box (lo > hi) gives a positive value; its leaves hold no triangles anyway
+}
+
+// The largest squared distance of the points of node r from their mean.
+double squaredSpread(const std::vector<Vec3>& points, const std::vector<std::uint32_t>& items, Range r) {
+  Vec3 mean = Vec3::Zero();
+  for (std::uint32_t i = r.begin; i < r.end; ++i) mean += points[items[i]];
+  mean /= static_cast<double>(r.end - r.begin);
+  double spread = 0.0;
+  for (std::uint32_t i = r.begin; i < r.end; ++i) spread = std::max(spread, (points[items[i]] - mean).squaredNorm());
+  return spread;
+}
+
+void requireWrapped(const TriangleMesh& mesh, std::size_t points, const std::vector<std::uint32_t>& wrapped) {
+  if (wrapped.size() != points) throw InvalidParameter("TightClustering: one wrapped triangle per point is needed");
+  for (const std::uint32_t t : wrapped)
+    if (t >= mesh.size()) throw InvalidParameter("TightClustering: wrapped triangle out of range");
+}
+
+// The items of clusterMesh are the wrapped triangles (each once, in the order first wrapped), with what
+// the choice of a centre needs of each: its centroid and the depth hint, the mean of its points' distances
+// below it (from the sums of the points with a finite distance).
+struct TriangleItems {
+  std::vector<std::uint32_t> itemOfPoint;  // by point
+  std::vector<std::uint32_t> triangle;     // by item, as are the arrays below
+  std::vector<double> depthSum;
+  std::vector<std::uint32_t> depthCount;
+  std::vector<Vec3> pointSum;
+  std::vector<Vec3> centroid;
+};
+
+TriangleItems gatherItems(const TriangleMesh& mesh, const std::vector<Vec3>& points,
+                          const std::vector<std::uint32_t>& wrapped) {
+  TriangleItems items;
+  std::vector<std::uint32_t> slot(mesh.size(), kNone);  // by triangle: its item
+  items.itemOfPoint.resize(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const std::uint32_t t = wrapped[i];
+    if (slot[t] == kNone) {
+      slot[t] = static_cast<std::uint32_t>(items.triangle.size());
+      items.triangle.push_back(t);
+      items.depthSum.push_back(0.0);
+      items.depthCount.push_back(0);
+      items.pointSum.push_back(Vec3::Zero());
+    }
+    const std::uint32_t item = slot[t];
+    items.itemOfPoint[i] = item;
+    const double depth = (mesh.centroid(t) - points[i]).norm();
+    if (std::isfinite(depth)) {
+      items.depthSum[item] += depth;
+      ++items.depthCount[item];
+      items.pointSum[item] += points[i];
+    }
+  }
+  items.centroid.resize(items.triangle.size());
+  for (std::size_t k = 0; k < items.triangle.size(); ++k) items.centroid[k] = mesh.centroid(items.triangle[k]);
+  return items;
+}
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+constexpr int kMaxCandidates = 7;
+
+struct Candidate {
+  Vec3 centre;
+  double far2, near2, lower;  // squared distances to the farthest and nearest vertex; bound of the excess
+};
+
+inline double capVolume(double r, double h) { return 0.25 * h * h * (3.0 * r - h); }
+
+// Whether a node becomes a sphere, and its centre. Excess of a sphere: the volume of its cap beyond the
+// tangent plane at the surface point nearest to its centre, over 4/3 pi (so that it compares with d^3):
+// with rho the signed distance of the centre and h = R - rho the cap's height, h^2 (3R - h) / 4; a centre
+// outside counts as h = 2R (the whole ball). The excess grows with h, and rho is at most the distance to
+// the nearest vertex of the node's own triangles, so R minus that distance bounds h from below: a
+// candidate whose bound already exceeds d^3 or the best exact excess found gets no distance query (the
+// costly part); the decision and the chosen centre are those of exact values.
+class PatchJudge {
+ public:
+  PatchJudge(const TriangleMesh& mesh, const TriangleItems& items, const std::vector<std::uint32_t>& order, double d)
+      : mesh_(mesh), items_(items), order_(order), surface_(mesh), d3_(d * d * d) {}
+
+  // Whether node r becomes a sphere; its centre in best either way.
+  bool evaluate(Range r, Vec3& best) const {
+    Candidate cand[kMaxCandidates];
+    const int count = placeCandidates(r, cand);
+    reach(cand, count, r);
+    boundExcess(cand, count);
+    // A single triangle is kept whatever d is: its centre is chosen on exact values.
+    const bool single = r.end - r.begin == 1;
+    const double bestExcess = pickCentre(cand, count, single ? kInfinity : d3_, best);
+    return single || bestExcess <= d3_;
+  }
+
+ private:
+  // The mean of the placement's points on the node's triangles, and the mean of their centroids pushed
+  // inward along their mean normal by fractions of their mean depth: those that are finite, or the mean
+  // centroid alone when none is. Returns how many.
+  int placeCandidates(Range r, Candidate* cand) const {
+    const double size = static_cast<double>(r.end - r.begin);
+    Vec3 meanCentroid = Vec3::Zero(), meanNormal = Vec3::Zero(), meanPoint = Vec3::Zero();
+    double depth = 0.0, weights = 0.0;
+    for (std::uint32_t i = r.begin; i < r.end; ++i) {
+      const std::uint32_t k = order_[i];
+      meanCentroid += items_.centroid[k];
+      meanNormal += mesh_.normals[items_.triangle[k]];
+      if (items_.depthCount[k] > 0) {
+        depth += items_.depthSum[k] / items_.depthCount[k];
+        meanPoint += items_.pointSum[k];
+        weights += items_.depthCount[k];
+      }
+    }
+    meanCentroid /= size;
+    depth /= size;
+    int count = 0;
+    if (weights > 0.0) cand[count++].centre = meanPoint / weights;
+    const double normalLength = meanNormal.norm();
+    if (normalLength > 1e-9 * size && depth > 0.0) {
+      const Vec3 inward = -meanNormal / normalLength;
+      for (const double f : {1.0, 0.75, 0.5, 0.25, 0.125}) cand[count++].centre = meanCentroid + f * depth * inward;
+    }
+    int kept = 0;
+    for (int j = 0; j < count; ++j)
+      if (cand[j].centre.allFinite()) cand[kept++] = cand[j];
+    if (kept == 0) cand[kept++].centre = meanCentroid;  // no depth to go by: the patch itself
+    return kept;
+  }
+
+  // Fills far2 / near2 of every candidate in one pass over the node's vertices.
+  void reach(Candidate* cand, int count, Range r) const {
+    for (int j = 0; j < count; ++j) {
+      cand[j].far2 = 0.0;
+      cand[j].near2 = kInfinity;
+    }
+    for (std::uint32_t i = r.begin; i < r.end; ++i) {
+      const std::uint32_t t = items_.triangle[order_[i]];
+      for (int v = 0; v < 3; ++v) {
+        const Vec3& p = mesh_.vertex(t, v);
+        for (int j = 0; j < count; ++j) {
+          const double d2 = (p - cand[j].centre).squaredNorm();
+          cand[j].far2 = std::max(cand[j].far2, d2);
+          cand[j].near2 = std::min(cand[j].near2, d2);
+        }
+      }
+    }
+  }
+
+  // Each candidate's lower bound of its excess, from its nearest vertex (+inf where not finite).
+  static void boundExcess(Candidate* cand, int count) {
+    for (int j = 0; j < count; ++j) {
+      const double radius = std::sqrt(cand[j].far2);
+      cand[j].lower = capVolume(radius, std::clamp(radius - std::sqrt(cand[j].near2), 0.0, 2.0 * radius));
+      if (!std::isfinite(cand[j].lower)) cand[j].lower = kInfinity;
+    }
+  }
+
+  // Exact excess (one distance query) only for candidates whose bound could still pass threshold and win;
+  // the lowest bounds first, so that fewer are left to query (ties keep the candidates' order). Returns
+  // the least exact excess (+inf when none was found), its centre in best (else the lowest bound's).
+  double pickCentre(Candidate* cand, int count, double threshold, Vec3& best) const {
+    std::stable_sort(cand, cand + count, [](const Candidate& x, const Candidate& y) { return x.lower < y.lower; });
+    best = cand[0].centre;
+    double bestExcess = kInfinity;
+    for (int j = 0; j < count; ++j) {
+      if (cand[j].lower > threshold || cand[j].lower >= bestExcess) continue;
+      const double radius = std::sqrt(cand[j].far2);
+      const double e =
+          capVolume(radius, std::clamp(radius - surface_.signedDistance(cand[j].centre, radius), 0.0, 2.0 * radius));
+      if (std::isfinite(e) && e < bestExcess) {
+        bestExcess = e;
+        best = cand[j].centre;
+      }
+    }
+    return bestExcess;
+  }
+
+  const TriangleMesh& mesh_;
+  const TriangleItems& items_;
+  const std::vector<std::uint32_t>& order_;
+  const SurfaceDistance surface_;
+  const double d3_;
+};
+
+// A node kept as a sphere, with its centre.
+struct Leaf {
+  Range range;
+  Vec3 centre;
+};
+
+// The tree over the items, cut where the judge keeps a node. Items of disjoint nodes are disjoint ranges
+// of order(), so nodes run in parallel.
+class PatchTree {
+ public:
+  PatchTree(const TriangleMesh& mesh, const TriangleItems& items, double d)
+      : items_(items), order_(identity(items.triangle.size())), judge_(mesh, items, order_, d) {}
+  PatchTree(const PatchTree&) = delete;
+  PatchTree& operator=(const PatchTree&) = delete;
+
+  // The leaves in groups: those found at the top of the tree, then those below each node the top left.
+  // The tree and the leaves do not depend on the threads (only their grouping, which the labelling removes).
+  std::vector<std::vector<Leaf>> leaves() {
+    unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+    if (order_.size() < 4096) threads = 1;
+    std::vector<std::vector<Leaf>> groups(1);
+    std::vector<Range> tasks{{0, static_cast<std::uint32_t>(order_.size())}};
+    std::atomic<std::size_t> nextTask{expandTop(threads, tasks, groups[0])};
+    groups.resize(1 + tasks.size());
+    detail::runParallel(threads, [&](unsigned) {
+      for (std::size_t t; (t = nextTask.fetch_add(1)) < tasks.size();) descend(tasks[t], groups[1 + t]);
+    });
+    return groups;
+  }
+
+  // The items in the order of the tree: a leaf's items are order()[leaf.range].
+  const std::vector<std::uint32_t>& order() const { return order_; }
+
+ private:
+  // Whether node r is a leaf (with its centre); if not, it is split and mid is where its second half starts.
+  bool isLeaf(Range r, Vec3& centre, std::uint32_t& mid) {
+    if (judge_.evaluate(r, centre)) return true;
+    mid = splitAtMean(order_, r.begin, r.end, items_.centroid);
+    return false;
+  }
+
+  // The top of the tree breadth first on this thread until there are a few nodes per thread (nothing on
+  // one thread): its leaves go to top, its nodes to tasks. Returns the first node it left to expand.
+  std::size_t expandTop(unsigned threads, std::vector<Range>& tasks, std::vector<Leaf>& top) {
+    std::size_t next = 0;
+    while (threads > 1 && next < tasks.size() && tasks.size() - next < 4 * std::size_t(threads)) {
+      const Range r = tasks[next++];
+      Vec3 centre;
+      std::uint32_t mid;
+      if (isLeaf(r, centre, mid)) {
+        top.push_back({r, centre});
+        continue;
+      }
+      tasks.push_back({r.begin, mid});
+      tasks.push_back({mid, r.end});
+    }
+    return next;
+  }
+
+  // Depth first below one node.
+  void descend(Range root, std::vector<Leaf>& leaves) {
+    std::vector<Range> stack{root};
+    while (!stack.empty()) {
+      const Range r = stack.back();
+      stack.pop_back();
+      Vec3 centre;
+      std::uint32_t mid;
+      if (isLeaf(r, centre, mid)) {
+        leaves.push_back({r, centre});
+        continue;
+      }
+      stack.push_back({mid, r.end});
+      stack.push_back({r.begin, mid});
+    }
+  }
+
+  const TriangleItems& items_;
+  std::vector<std::uint32_t> order_;
+  const PatchJudge judge_;
+};
+
+// Labels the points by the leaf holding their triangle, and the leaves' centres in label order.
+std::uint32_t labelLeaves(const std::vector<std::vector<Leaf>>& groups, const std::vector<std::uint32_t>& order,
+                          const TriangleItems& items, std::vector<std::uint32_t>& labels, std::vector<Vec3>& centres) {
+  std::vector<std::uint32_t> clusterOf(order.size(), 0);
+  std::vector<Vec3> clusterCentre;
+  for (const std::vector<Leaf>& leaves : groups)
+    for (const Leaf& leaf : leaves) {
+      for (std::uint32_t i = leaf.range.begin; i < leaf.range.end; ++i)
+        clusterOf[order[i]] = static_cast<std::uint32_t>(clusterCentre.size());
+      clusterCentre.push_back(leaf.centre);
+    }
+  std::vector<std::uint32_t> firstOrder;
+  const std::uint32_t count =
+      labelPoints(clusterOf, items.itemOfPoint, static_cast<std::uint32_t>(clusterCentre.size()), labels, &firstOrder);
+  centres.reserve(count);
+  for (const std::uint32_t c : firstOrder) centres.push_back(clusterCentre[c]);
+  return count;
 }
 
 }  // namespace
@@ -164,24 +456,15 @@ std::uint32_t TightClustering::cluster(const std::vector<Vec3>& points, double d
   labels.assign(n, 0);
   if (n == 0) return 0;
   if (n >= kNone) throw InvalidParameter("TightClustering: too many points");
-  std::vector<std::uint32_t> items(n);
-  for (std::uint32_t i = 0; i < n; ++i) items[i] = i;
+  std::vector<std::uint32_t> items = identity(n);
   std::vector<std::uint32_t> clusterOf(n, 0);
   std::uint32_t clusters = 0;
   const double r2 = 0.25 * d * d;
-  struct Range {
-    std::uint32_t begin, end;
-  };
   std::vector<Range> stack{{0, static_cast<std::uint32_t>(n)}};
   while (!stack.empty()) {
     const Range r = stack.back();
     stack.pop_back();
-    Vec3 mean = Vec3::Zero();
-    for (std::uint32_t i = r.begin; i < r.end; ++i) mean += points[items[i]];
-    mean /= static_cast<double>(r.end - r.begin);
-    double spread = 0.0;
-    for (std::uint32_t i = r.begin; i < r.end; ++i) spread = std::max(spread, (points[items[i]] - mean).squaredNorm());
-    if (r.end - r.begin == 1 || spread <= r2) {
+    if (r.end - r.begin == 1 || squaredSpread(points, items, r) <= r2) {
       for (std::uint32_t i = r.begin; i < r.end; ++i) clusterOf[items[i]] = clusters;
       ++clusters;
       continue;
@@ -190,9 +473,7 @@ std::uint32_t TightClustering::cluster(const std::vector<Vec3>& points, double d
     stack.push_back({mid, r.end});
     stack.push_back({r.begin, mid});
   }
-  std::vector<std::uint32_t> identity(n);
-  for (std::uint32_t i = 0; i < n; ++i) identity[i] = i;
-  return labelPoints(clusterOf, identity, clusters, labels, nullptr);
+  return labelPoints(clusterOf, identity(n), clusters, labels, nullptr);
 }
 
 std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::vector<Vec3>& points,
@@ -203,196 +484,10 @@ std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::
   const std::size_t n = points.size();
   labels.assign(n, 0);
   if (n == 0) return 0;
-  if (wrapped.size() != n) throw InvalidParameter("TightClustering: one wrapped triangle per point is needed");
-  for (const std::uint32_t t : wrapped)
-    if (t >= mesh.size()) throw InvalidParameter("TightClustering: wrapped triangle out of range");
-
-  // The items are the wrapped triangles (each once); the depth hint of a triangle is the mean of its
-  // points' distances below it.
-  const std::size_t triangles = mesh.size();
-  std::vector<std::uint32_t> slot(triangles, kNone), itemOfPoint(n);
-  std::vector<std::uint32_t> itemTriangle;
-  std::vector<double> depthSum;
-  std::vector<std::uint32_t> depthCount;
-  std::vector<Vec3> pointSum;
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t t = wrapped[i];
-    if (slot[t] == kNone) {
-      slot[t] = static_cast<std::uint32_t>(itemTriangle.size());
-      itemTriangle.push_back(t);
-      depthSum.push_back(0.0);
-      depthCount.push_back(0);
-      pointSum.push_back(Vec3::Zero());
-    }
-    const std::uint32_t item = slot[t];
-    itemOfPoint[i] = item;
-    const double depth = (mesh.centroid(t) - points[i]).norm();
-    if (std::isfinite(depth)) {
-      depthSum[item] += depth;
-      ++depthCount[item];
-      pointSum[item] += points[i];
-    }
-  }
-  const std::size_t m = itemTriangle.size();
-  std::vector<Vec3> centroid(m);
-  for (std::size_t k = 0; k < m; ++k) centroid[k] = mesh.centroid(itemTriangle[k]);
-
-  const SurfaceDistance surface(mesh);
-  std::vector<std::uint32_t> items(m);
-  for (std::uint32_t k = 0; k < m; ++k) items[k] = k;
-  const double d3 = d * d * d;
-  // Excess of a sphere: the volume of its cap beyond the tangent plane at the surface point nearest to
-  // its centre, over 4/3 pi (so that it compares with d^3): with rho the signed distance of the centre
-  // and h = R - rho the cap's height, h^2 (3R - h) / 4; a centre outside counts as h = 2R (the whole ball).
-  // The excess grows with h, and rho is at most the distance to the nearest vertex of the node's own
-  // triangles, so R minus that distance bounds h from below: a candidate whose bound already exceeds
-  // d^3 or the best exact excess found gets no distance query (the costly part); the decision and the
-  // chosen centre are those of exact values.
-  auto capVolume = [](double r, double h) { return 0.25 * h * h * (3.0 * r - h); };
-  constexpr int kMaxCandidates = 7;
-  struct Candidate {
-    Vec3 centre;
-    double far2, near2, lower;
-  };
-  // Fills far2 / near2 of every candidate in one pass over the node's vertices.
-  auto reach = [&](Candidate* cand, int count, std::uint32_t begin, std::uint32_t end) {
-    for (int j = 0; j < count; ++j) {
-      cand[j].far2 = 0.0;
-      cand[j].near2 = std::numeric_limits<double>::infinity();
-    }
-    for (std::uint32_t i = begin; i < end; ++i) {
-      const std::uint32_t t = itemTriangle[items[i]];
-      for (int v = 0; v < 3; ++v) {
-        const Vec3& p = mesh.vertex(t, v);
-        for (int j = 0; j < count; ++j) {
-          const double d2 = (p - cand[j].centre).squaredNorm();
-          cand[j].far2 = std::max(cand[j].far2, d2);
-          cand[j].near2 = std::min(cand[j].near2, d2);
-        }
-      }
-    }
-  };
-
-  struct Range {
-    std::uint32_t begin, end;
-  };
-  struct Leaf {
-    Range range;
-    Vec3 centre;
-  };
-  // Whether a node becomes a sphere, and its centre.
-  auto evaluate = [&](const Range r, Vec3& best) {
-    const double size = static_cast<double>(r.end - r.begin);
-    Vec3 meanCentroid = Vec3::Zero(), meanNormal = Vec3::Zero(), meanPoint = Vec3::Zero();
-    double depth = 0.0, weights = 0.0;
-    for (std::uint32_t i = r.begin; i < r.end; ++i) {
-      const std::uint32_t k = items[i];
-      meanCentroid += centroid[k];
-      meanNormal += mesh.normals[itemTriangle[k]];
-      if (depthCount[k] > 0) {
-        depth += depthSum[k] / depthCount[k];
-        meanPoint += pointSum[k];
-        weights += depthCount[k];
-      }
-    }
-    meanCentroid /= size;
-    depth /= size;
-    Candidate cand[kMaxCandidates];
-    int count = 0;
-    if (weights > 0.0) cand[count++].centre = meanPoint / weights;
-    const double normalLength = meanNormal.norm();
-    if (normalLength > 1e-9 * size && depth > 0.0) {
-      const Vec3 inward = -meanNormal / normalLength;
-      for (const double f : {1.0, 0.75, 0.5, 0.25, 0.125}) cand[count++].centre = meanCentroid + f * depth * inward;
-    }
-    int kept = 0;
-    for (int j = 0; j < count; ++j)
-      if (cand[j].centre.allFinite()) cand[kept++] = cand[j];
-    count = kept;
-    if (count == 0) cand[count++].centre = meanCentroid;  // no depth to go by: the patch itself
-    reach(cand, count, r.begin, r.end);
-    // A single triangle is kept whatever d is: its centre is chosen on exact values.
-    const double threshold = r.end - r.begin == 1 ? std::numeric_limits<double>::infinity() : d3;
-    for (int j = 0; j < count; ++j) {
-      const double radius = std::sqrt(cand[j].far2);
-      cand[j].lower = capVolume(radius, std::clamp(radius - std::sqrt(cand[j].near2), 0.0, 2.0 * radius));
-      if (!std::isfinite(cand[j].lower)) cand[j].lower = std::numeric_limits<double>::infinity();
-    }
-    // Exact excess (one distance query) only for candidates whose bound could still pass and win;
-    // the lowest bounds first, so that fewer are left to query (ties keep the candidates' order).
-    std::stable_sort(cand, cand + count, [](const Candidate& x, const Candidate& y) { return x.lower < y.lower; });
-    best = cand[0].centre;
-    double bestExcess = std::numeric_limits<double>::infinity();
-    for (int j = 0; j < count; ++j) {
-      if (cand[j].lower > threshold || cand[j].lower >= bestExcess) continue;
-      const double radius = std::sqrt(cand[j].far2);
-      const double e =
-          capVolume(radius, std::clamp(radius - surface.signedDistance(cand[j].centre, radius), 0.0, 2.0 * radius));
-      if (std::isfinite(e) && e < bestExcess) {
-        bestExcess = e;
-        best = cand[j].centre;
-      }
-    }
-    return r.end - r.begin == 1 || bestExcess <= d3;
-  };
-  // Depth first below one node; items of disjoint nodes are disjoint ranges, so nodes run in parallel.
-  auto descend = [&](const Range root, std::vector<Leaf>& leaves) {
-    std::vector<Range> stack{root};
-    while (!stack.empty()) {
-      const Range r = stack.back();
-      stack.pop_back();
-      Vec3 centre;
-      if (evaluate(r, centre)) {
-        leaves.push_back({r, centre});
-        continue;
-      }
-      const std::uint32_t mid = splitAtMean(items, r.begin, r.end, centroid);
-      stack.push_back({mid, r.end});
-      stack.push_back({r.begin, mid});
-    }
-  };
-  // The top of the tree breadth first on this thread until there are a few nodes per thread, then those
-  // subtrees on all threads. The tree and the leaves do not depend on the threads (only their order,
-  // which the labelling below removes).
-  unsigned threads = std::max(1u, std::thread::hardware_concurrency());
-  if (m < 4096) threads = 1;
-  std::vector<Leaf> top;
-  std::vector<Range> tasks{{0, static_cast<std::uint32_t>(m)}};
-  std::size_t next = 0;  // tasks before it were expanded here; the rest run below
-  while (threads > 1 && next < tasks.size() && tasks.size() - next < 4 * std::size_t(threads)) {
-    const Range r = tasks[next++];
-    Vec3 centre;
-    if (evaluate(r, centre)) {
-      top.push_back({r, centre});
-      continue;
-    }
-    const std::uint32_t mid = splitAtMean(items, r.begin, r.end, centroid);
-    tasks.push_back({r.begin, mid});
-    tasks.push_back({mid, r.end});
-  }
-  std::vector<std::vector<Leaf>> below(tasks.size());
-  std::atomic<std::size_t> nextTask{next};
-  auto worker = [&]() {
-    for (std::size_t t; (t = nextTask.fetch_add(1)) < tasks.size();) descend(tasks[t], below[t]);
-  };
-  detail::runParallel(threads, [&](unsigned) { worker(); });
-  std::vector<std::uint32_t> clusterOf(m, 0);
-  std::vector<Vec3> clusterCentre;
-  auto take = [&](const std::vector<Leaf>& leaves) {
-    for (const Leaf& leaf : leaves) {
-      for (std::uint32_t i = leaf.range.begin; i < leaf.range.end; ++i)
-        clusterOf[items[i]] = static_cast<std::uint32_t>(clusterCentre.size());
-      clusterCentre.push_back(leaf.centre);
-    }
-  };
-  take(top);
-  for (const auto& leaves : below) take(leaves);
-  std::vector<std::uint32_t> order;
-  const std::uint32_t count =
-      labelPoints(clusterOf, itemOfPoint, static_cast<std::uint32_t>(clusterCentre.size()), labels, &order);
-  centres.reserve(count);
-  for (const std::uint32_t c : order) centres.push_back(clusterCentre[c]);
-  return count;
+  requireWrapped(mesh, n, wrapped);
+  const TriangleItems items = gatherItems(mesh, points, wrapped);
+  PatchTree tree(mesh, items, d);
+  return labelLeaves(tree.leaves(), tree.order(), items, labels, centres);
 }
 
 }  // namespace clod_haptics
