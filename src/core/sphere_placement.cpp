@@ -24,11 +24,13 @@ double farthestVertex(const TriangleMesh& mesh, std::size_t t, const Vec3& centr
 constexpr double kTau0 = -0.99;
 constexpr double kTauStep = 0.01;
 
+inline double tau(int k) { return kTau0 + kTauStep * k; }
+
 int firstAdmittingStep(double minDot) {
   int k = static_cast<int>(std::floor((minDot - kTau0) / kTauStep)) + 1;
   k = std::max(k, 0);
-  while (k > 0 && minDot < kTau0 + kTauStep * (k - 1)) --k;  // guard the floor against rounding
-  while (!(minDot < kTau0 + kTauStep * k)) ++k;
+  while (k > 0 && minDot < tau(k - 1)) --k;  // guard the floor against rounding
+  while (!(minDot < tau(k))) ++k;
   return k;
 }
 
@@ -41,10 +43,191 @@ struct Hit {
 // Hits a ray keeps for its final choice; past that the hits are enumerated again.
 constexpr int kKeep = 64;
 
-// Steps added to the highest step of a packet to guess the next packet's. A guess too low costs the ray a
-// second walk (1.3 to 2.5% of the rays on the subdivided shared meshes with this margin), one too high
-// skips less; 20 measured faster than 10 (1 ray in 36 walked twice on refined_elephant), 30 and 50.
+// Steps added to the highest step of a packet to guess the next packet's: a guess too low costs a ray a
+// second walk, one too high skips less.
 constexpr int kGuessMargin = 20;
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+// One ray: from a triangle's centroid along its inward normal.
+struct Ray {
+  std::uint32_t triangle;
+  Vec3 normal;
+  double minDot;  // the smallest dot of a hit's normal with the ray's normal
+  int k;          // step of minDot; -1 before the first hit
+  double bestT;   // the nearest hit with dot < tau_k
+  int seen;       // hits so far (kept up to kKeep)
+  int guess;      // a step the ray's answer is expected at or below, or -1 (see RayWalker)
+  Hit kept[kKeep];
+  // Back to no hits and no guess.
+  void reset() {
+    minDot = kInfinity;
+    k = -1;
+    bestT = kInfinity;
+    seen = 0;
+    guess = -1;
+  }
+  void rebest() {
+    const double limit = tau(k);
+    bestT = kInfinity;
+    for (int h = 0; h < std::min(seen, kKeep); ++h)
+      if (kept[h].dot < limit) bestT = std::min(bestT, kept[h].t);
+  }
+};
+
+// One thread's ray casts, one ray per triangle. With m the smallest dot seen so far and k its step, a
+// subtree matters only if its normals can reach below tau_{k-1} (a lower step) or below tau_k nearer
+// than the best hit at step k; the origin's neighbourhood, visited last, mostly faces along the normal
+// and is skipped. Skipping is exact in any visiting order (k only falls and the best distance only
+// shrinks), so the rays go in packets of neighbours.
+// Before its first hit a ray has nothing to skip by. So each ray also gets a guess g from its neighbours
+// (the previous packet's highest step plus a margin) and skips every subtree whose normals cannot go
+// below tau_g. Every hit below tau_g is still found, so when the ray ends at a step k <= g its answer
+// (which only involves hits below tau_k) is exact; when it ends above g or without a hit it walks again
+// without the guess.
+class RayWalker {
+ public:
+  static constexpr int W = TriangleBvh::kPacket;
+
+  RayWalker(const TriangleMesh& mesh, const TriangleBvh& bvh, double minT, std::vector<std::uint32_t>& opposite,
+            std::vector<std::uint16_t>& steps)
+      : mesh_(mesh), bvh_(bvh), minT_(minT), opposite_(opposite), steps_(steps) {
+    for (int r = 0; r < W; ++r) {  // lanes past a packet's count stay defined (and masked out)
+      rays_[r].normal = Vec3::Zero();
+      rays_[r].reset();
+      setCull(r);
+    }
+  }
+
+  // The rays of triangles bvh.order()[begin, end), in the hierarchy's leaf order: consecutive rays start
+  // close together and walk mostly the same nodes, so a packet of them walks each shared node once.
+  void cast(std::size_t begin, std::size_t end) {
+    for (std::size_t j = begin; j < end;) castPacket(loadPacket(j, end));
+  }
+
+ private:
+  // The next rays from order()[j, end) (triangles without a normal cast none), with the guess; returns
+  // how many.
+  int loadPacket(std::size_t& j, std::size_t end) {
+    int count = 0;
+    for (; j < end && count < W; ++j) {
+      const std::uint32_t t = bvh_.order()[j];
+      const Vec3& normal = mesh_.normals[t];
+      if (normal.isZero(0.0)) continue;
+      Ray& ray = rays_[count];
+      ray.triangle = t;
+      ray.normal = normal;
+      ray.reset();
+      origins_[count] = mesh_.centroid(t);
+      dirs_[count] = -normal;
+      ++count;
+    }
+    for (int r = 0; r < count; ++r) {
+      rays_[r].guess = guess_;
+      setCull(r);
+    }
+    return count;
+  }
+
+  // Walks the packet, again without the guess the rays it failed, and guesses for the next packet.
+  void castPacket(int count) {
+    bvh_.forEachPacketHit(origins_, dirs_, count, cull_,
+                          [this](int r, std::uint32_t tri, double dist) { hit(r, tri, dist); });
+    int highest = -1;
+    for (int r = 0; r < count; ++r) {
+      const Ray& ray = rays_[r];
+      if (ray.guess >= 0 && (ray.k < 0 || ray.k > ray.guess)) walkAgain(r);
+      highest = std::max(highest, ray.k);
+      finish(r);
+    }
+    guess_ = highest >= 0 ? highest + kGuessMargin : -1;
+  }
+
+  // Ray r's cull (see PacketCull): a subtree matters only if its normals can go below tau_guess and
+  // either below tau_{k-1} (a lower step) or below tau_k nearer than the best hit at step k; before the
+  // first hit (and once the hit buffer overflowed) nothing but the guess skips.
+  void setCull(int r) {
+    const Ray& ray = rays_[r];
+    for (int k = 0; k < 3; ++k) cull_.axis[k][r] = ray.normal[k];
+    cull_.cap[r] = ray.guess >= 0 ? tau(ray.guess) : kInfinity;
+    if (ray.k < 0 || ray.seen > kKeep) {
+      cull_.below[r] = kInfinity;
+      return;
+    }
+    cull_.below[r] = ray.k >= 1 ? tau(ray.k - 1) : -kInfinity;
+    cull_.nearBelow[r] = tau(ray.k);
+    cull_.within[r] = ray.bestT;
+  }
+
+  void hit(int r, std::uint32_t tri, double dist) {
+    Ray& ray = rays_[r];
+    if (tri == ray.triangle || dist <= minT_) return;
+    const double dot = mesh_.normals[tri].dot(ray.normal);
+    if (ray.seen < kKeep) ray.kept[ray.seen] = {tri, dist, dot};
+    ++ray.seen;
+    if (dot < ray.minDot) {
+      ray.minDot = dot;
+      const int step = firstAdmittingStep(dot);
+      if (step != ray.k) {
+        ray.k = step;
+        ray.rebest();
+        setCull(r);
+        return;
+      }
+    }
+    if (ray.k >= 0 && dot < tau(ray.k)) ray.bestT = std::min(ray.bestT, dist);
+    setCull(r);
+  }
+
+  // Nothing below tau_guess: the answer may lie in a skipped subtree. Walks ray r again without the guess.
+  void walkAgain(int r) {
+    rays_[r].reset();
+    setCull(r);
+    double all = kInfinity;
+    bvh_.forEachRayHit(
+        origins_[r], dirs_[r], all, [&](std::uint32_t tri, double dist) { hit(r, tri, dist); },
+        [&](const TriangleBvh::Node& node, double entry) { return TriangleBvh::keeps(cull_, r, node, entry); });
+  }
+
+  // The answer of a walked ray: the nearest hit with dot < tau_k (lowest index on ties).
+  void finish(int r) {
+    const Ray& ray = rays_[r];
+    const std::uint32_t t = ray.triangle;
+    if (ray.seen == 0) return;  // the ray escapes: no opposite triangle
+    std::uint32_t best = std::numeric_limits<std::uint32_t>::max();
+    const double limit = tau(ray.k);
+    double bestT = kInfinity;
+    auto consider = [&](std::uint32_t tri, double dist, double dot) {
+      if (dot < limit && (dist < bestT || (dist == bestT && tri < best))) {
+        bestT = dist;
+        best = tri;
+      }
+    };
+    if (ray.seen <= kKeep) {
+      for (int h = 0; h < ray.seen; ++h) consider(ray.kept[h].triangle, ray.kept[h].t, ray.kept[h].dot);
+    } else {
+      // More hits than the buffer holds (pruning was off after it overflowed, so minDot and k
+      // are over every hit): enumerate the hits again.
+      double all = kInfinity;
+      bvh_.forEachRayHit(origins_[r], dirs_[r], all, [&](std::uint32_t tri, double dist) {
+        if (tri == t || dist <= minT_) return;
+        consider(tri, dist, mesh_.normals[tri].dot(ray.normal));
+      });
+    }
+    opposite_[t] = best;
+    steps_[t] = static_cast<std::uint16_t>(std::min(ray.k, 65535));
+  }
+
+  const TriangleMesh& mesh_;
+  const TriangleBvh& bvh_;
+  const double minT_;
+  std::vector<std::uint32_t>& opposite_;
+  std::vector<std::uint16_t>& steps_;
+  Ray rays_[W];
+  Vec3 origins_[W], dirs_[W];
+  PacketCull cull_;
+  int guess_ = -1;  // the step guessed for the next packet
+};
 
 }  // namespace
 
@@ -70,168 +253,21 @@ PaperPlacement::Opposites PaperPlacement::castRays(const TriangleMesh& mesh) con
   const std::size_t n = mesh.size();
   // Ray casts are compute-bound: every hardware thread, at least 1024 rays each.
   const unsigned threads = detail::threadsFor(n, threads_, 1024, std::numeric_limits<unsigned>::max());
-  const TriangleBvh bvh(mesh, 4, threads);  // freed on return, before the spheres are written
+  const TriangleBvh bvh(mesh, 4, threads);      // freed on return, before the spheres are written
   const double minT = 1e-12 * mesh.diagonal();  // ignore hits at the origin itself (coplanar duplicates)
-
-  std::vector<std::uint32_t> opposite(n, std::numeric_limits<std::uint32_t>::max());
-  std::vector<std::uint16_t> steps(n, 0);
-  // One ray per triangle, from its centroid along the inward normal. With m the smallest dot seen so
-  // far and k its step, a subtree matters only if its normals can reach below tau_{k-1} (a lower
-  // step) or below tau_k nearer than the best hit at step k; the origin's neighbourhood, visited last,
-  // mostly faces along the normal and is skipped. Skipping is exact in any visiting order (k only
-  // falls and the best distance only shrinks), so the rays go in packets of neighbours.
-  // Before its first hit a ray has nothing to skip by, and that part of the walk was most of it. So
-  // each ray also gets a guess g from its neighbours (the previous packet's highest step plus a margin)
-  // and skips every subtree whose normals cannot go below tau_g. Every hit below tau_g is still found,
-  // so when the ray ends at a step k <= g its answer (which only involves hits below tau_k) is exact;
-  // when it ends above g or without a hit it walks again without the guess.
-  struct Ray {
-    std::uint32_t triangle;
-    Vec3 normal;
-    double minDot;
-    int k;  // step of minDot; -1 before the first hit
-    double bestT;
-    int seen;
-    int guess;  // a step the ray's answer is expected at or below, or -1 (see the walk below)
-    Hit kept[kKeep];
-    // Back to no hits and no guess.
-    void reset() {
-      minDot = std::numeric_limits<double>::infinity();
-      k = -1;
-      bestT = std::numeric_limits<double>::infinity();
-      seen = 0;
-      guess = -1;
-    }
-    void rebest() {
-      const double tau = kTau0 + kTauStep * k;
-      bestT = std::numeric_limits<double>::infinity();
-      for (int h = 0; h < std::min(seen, kKeep); ++h)
-        if (kept[h].dot < tau) bestT = std::min(bestT, kept[h].t);
-    }
-  };
+  Opposites found{std::vector<std::uint32_t>(n, std::numeric_limits<std::uint32_t>::max()),
+                  std::vector<std::uint16_t>(n, 0)};
   std::atomic<std::size_t> next{0};
-  auto worker = [&](bool reporter) {
+  detail::runParallel(threads, [&](unsigned t) {
     constexpr std::size_t kChunk = 256;
-    constexpr int W = TriangleBvh::kPacket;
-    Ray rays[W];
-    Vec3 origins[W], dirs[W];
-    // Each ray's cull (see PacketCull): a subtree matters only if its normals can go below tau_guess
-    // and either below tau_{k-1} (a lower step) or below tau_k nearer than the best hit at step k;
-    // before the first hit (and once the hit buffer overflowed) nothing but the guess skips.
-    PacketCull cull;
-    auto setCull = [&](int r) {
-      const Ray& ray = rays[r];
-      for (int k = 0; k < 3; ++k) cull.axis[k][r] = ray.normal[k];
-      cull.cap[r] = ray.guess >= 0 ? kTau0 + kTauStep * ray.guess : std::numeric_limits<double>::infinity();
-      if (ray.k < 0 || ray.seen > kKeep) {
-        cull.below[r] = std::numeric_limits<double>::infinity();
-        return;
-      }
-      cull.below[r] = ray.k >= 1 ? kTau0 + kTauStep * (ray.k - 1) : -std::numeric_limits<double>::infinity();
-      cull.nearBelow[r] = kTau0 + kTauStep * ray.k;
-      cull.within[r] = ray.bestT;
-    };
-    for (int r = 0; r < W; ++r) {  // lanes past a packet's count stay defined (and masked out)
-      rays[r].normal = Vec3::Zero();
-      rays[r].reset();
-      setCull(r);
+    RayWalker walker(mesh, bvh, minT, found.opposite, found.steps);
+    for (std::size_t begin; (begin = next.fetch_add(kChunk)) < n;) {
+      if (t == 0 && progress_) progress_(static_cast<double>(begin) / static_cast<double>(n));
+      walker.cast(begin, std::min(n, begin + kChunk));
     }
-    auto hit = [&](int r, std::uint32_t tri, double dist) {
-      Ray& ray = rays[r];
-      if (tri == ray.triangle || dist <= minT) return;
-      const double dot = mesh.normals[tri].dot(ray.normal);
-      if (ray.seen < kKeep) ray.kept[ray.seen] = {tri, dist, dot};
-      ++ray.seen;
-      if (dot < ray.minDot) {
-        ray.minDot = dot;
-        const int step = firstAdmittingStep(dot);
-        if (step != ray.k) {
-          ray.k = step;
-          ray.rebest();
-          setCull(r);
-          return;
-        }
-      }
-      if (ray.k >= 0 && dot < kTau0 + kTauStep * ray.k) ray.bestT = std::min(ray.bestT, dist);
-      setCull(r);
-    };
-    // The answer of a walked ray: the nearest hit with dot < tau_k (lowest index on ties).
-    auto finish = [&](int r) {
-      const Ray& ray = rays[r];
-      const std::uint32_t t = ray.triangle;
-      if (ray.seen == 0) return;  // the ray escapes: no opposite triangle
-      std::uint32_t best = std::numeric_limits<std::uint32_t>::max();
-      const double tau = kTau0 + kTauStep * ray.k;
-      double bestT = std::numeric_limits<double>::infinity();
-      auto consider = [&](std::uint32_t tri, double dist, double dot) {
-        if (dot < tau && (dist < bestT || (dist == bestT && tri < best))) {
-          bestT = dist;
-          best = tri;
-        }
-      };
-      if (ray.seen <= kKeep) {
-        for (int h = 0; h < ray.seen; ++h) consider(ray.kept[h].triangle, ray.kept[h].t, ray.kept[h].dot);
-      } else {
-        // More hits than the buffer holds (pruning was off after it overflowed, so minDot and k
-        // are over every hit): enumerate the hits again.
-        double all = std::numeric_limits<double>::infinity();
-        bvh.forEachRayHit(origins[r], dirs[r], all, [&](std::uint32_t tri, double dist) {
-          if (tri == t || dist <= minT) return;
-          consider(tri, dist, mesh.normals[tri].dot(ray.normal));
-        });
-      }
-      opposite[t] = best;
-      steps[t] = static_cast<std::uint16_t>(std::min(ray.k, 65535));
-    };
-    int guess = -1;  // the step guessed for the next packet
-    for (;;) {
-      const std::size_t begin = next.fetch_add(kChunk);
-      if (begin >= n) return;
-      if (reporter && progress_) progress_(static_cast<double>(begin) / static_cast<double>(n));
-      const std::size_t end = std::min(n, begin + kChunk);
-      // Rays in the hierarchy's leaf order: consecutive rays start close together and walk mostly the
-      // same nodes, so a packet of them walks each shared node once.
-      for (std::size_t j = begin; j < end;) {
-        int count = 0;
-        for (; j < end && count < W; ++j) {
-          const std::uint32_t t = bvh.order()[j];
-          const Vec3& normal = mesh.normals[t];
-          if (normal.isZero(0.0)) continue;
-          Ray& ray = rays[count];
-          ray.triangle = t;
-          ray.normal = normal;
-          ray.reset();
-          origins[count] = mesh.centroid(t);
-          dirs[count] = -normal;
-          ++count;
-        }
-        for (int r = 0; r < count; ++r) {
-          rays[r].guess = guess;
-          setCull(r);
-        }
-        bvh.forEachPacketHit(origins, dirs, count, cull, hit);
-        int highest = -1;
-        for (int r = 0; r < count; ++r) {
-          Ray& ray = rays[r];
-          if (ray.guess >= 0 && (ray.k < 0 || ray.k > ray.guess)) {
-            // Nothing below tau_guess: the answer may lie in a skipped subtree. Walk again without the guess.
-            ray.reset();
-            setCull(r);
-            double all = std::numeric_limits<double>::infinity();
-            bvh.forEachRayHit(
-                origins[r], dirs[r], all, [&](std::uint32_t tri, double dist) { hit(r, tri, dist); },
-                [&](const TriangleBvh::Node& node, double entry) { return TriangleBvh::keeps(cull, r, node, entry); });
-          }
-          highest = std::max(highest, ray.k);
-          finish(r);
-        }
-        guess = highest >= 0 ? highest + kGuessMargin : -1;
-      }
-    }
-  };
-  detail::runParallel(threads, [&](unsigned t) { worker(t == 0); });
+  });
   if (progress_) progress_(1.0);
-  return {std::move(opposite), std::move(steps)};
+  return found;
 }
 
 namespace {
@@ -291,7 +327,8 @@ PlacedCentres PaperPlacement::placeCentres(const TriangleMesh& mesh, PlacementSt
   // first sphere index counted beforehand): the same arrays as one pass in order.
   const std::size_t n = mesh.size();
   const unsigned parts = detail::threadsFor(n, threads_, 2048);
-  std::vector<std::size_t> cut(parts + 1), at(parts + 1, 0);  // part j: triangles [cut[j], cut[j+1]), spheres from at[j]
+  std::vector<std::size_t> cut(parts + 1),
+      at(parts + 1, 0);  // part j: triangles [cut[j], cut[j+1]), spheres from at[j]
   for (unsigned j = 0; j <= parts; ++j) cut[j] = n * j / parts;
   for (unsigned j = 0; j < parts; ++j) at[j + 1] = at[j] + sphereCount(found.opposite, cut[j], cut[j + 1]);
   PlacedCentres out;
