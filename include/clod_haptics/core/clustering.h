@@ -46,7 +46,7 @@ class Clustering {
  * \brief Single-link clustering (paper 3.2.2): two centres whose Euclidean distance is strictly
  * less than d are in one cluster, and clusters are closed under that relation (chains merge).
  * Euclidean rather than the cube's Chebyshev distance, so the result does not depend on how the
- * model is rotated. d = 0 keeps every centre apart. Expected O(n): a hash grid of cell size d
+ * model is rotated. d = 0 keeps every centre apart. Expected O(n): a grid of cells of side d / sqrt(3)
  * (never finer than 1e-12 of the point cloud's extent) and union-find over neighbouring cells, on several
  * threads for a large input (the same result as on one).
  */
