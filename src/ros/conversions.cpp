@@ -8,21 +8,20 @@
 
 namespace clod_haptics {
 
-geometry_msgs::Point toPoint(const Vec3& v) {
-  geometry_msgs::Point p;
-  p.x = v.x();
-  p.y = v.y();
-  p.z = v.z();
-  return p;
+namespace {
+template <class Msg>
+Msg xyz(const Vec3& v) {
+  Msg m;
+  m.x = v.x();
+  m.y = v.y();
+  m.z = v.z();
+  return m;
 }
+}  // namespace
 
-geometry_msgs::Vector3 toVector3(const Vec3& v) {
-  geometry_msgs::Vector3 p;
-  p.x = v.x();
-  p.y = v.y();
-  p.z = v.z();
-  return p;
-}
+geometry_msgs::Point toPoint(const Vec3& v) { return xyz<geometry_msgs::Point>(v); }
+
+geometry_msgs::Vector3 toVector3(const Vec3& v) { return xyz<geometry_msgs::Vector3>(v); }
 
 Vec3 fromPoint(const geometry_msgs::Point& p) { return Vec3(p.x, p.y, p.z); }
 
