@@ -3,15 +3,13 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <cstring>
 #include <limits>
-
-#if defined(__x86_64__)
-#include <immintrin.h>
-#endif
 
 #include "float_rounding.h"
 #include "parallel.h"
+#include "simd/dispatch.h"
+#include "simd/float4.h"
+#include "simd/packet_baseline.h"
 
 namespace clod_haptics {
 namespace {
@@ -23,8 +21,16 @@ constexpr int kBins = 16;
 // kMaxSahDepth + 32, within the traversal's stack (one pending entry per level).
 constexpr int kMaxSahDepth = 64;
 
+using detail::centre4;
+using detail::F4;
+using detail::loadMasked4;
+using detail::loadPadded4;
+using detail::max4;
+using detail::min4;
 using detail::roundDown;
 using detail::roundUp;
+using detail::splat4;
+using detail::store4;
 
 // A float box; the triangles' boxes are rounded outward, so unions of them stay conservative.
 struct Box {
@@ -67,35 +73,6 @@ using PrimArray = std::vector<Prim, detail::DefaultInitAllocator<Prim>>;
 
 // A box centre coordinate, the binning key.
 float centreOf(const Prim& p, int axis) { return 0.5f * p.lo[axis] + 0.5f * p.hi[axis]; }
-
-// Four floats of which the build uses three; the same values with SSE or without.
-#if defined(__SSE2__)
-using F4 = __m128;
-F4 loadLo(const Prim& p) { return _mm_load_ps(p.lo); }
-F4 loadHi(const Prim& p) {  // the index's bits cleared
-  return _mm_and_ps(_mm_load_ps(p.hi), _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1)));
-}
-F4 splat4(float f) { return _mm_set1_ps(f); }
-F4 min4(F4 a, F4 b) { return _mm_min_ps(a, b); }
-F4 max4(F4 a, F4 b) { return _mm_max_ps(a, b); }
-F4 centre4(F4 lo, F4 hi) { return _mm_add_ps(_mm_mul_ps(_mm_set1_ps(0.5f), lo), _mm_mul_ps(_mm_set1_ps(0.5f), hi)); }
-void store4(float* out, F4 a) { _mm_storeu_ps(out, a); }
-#else
-struct F4 {
-  float v[4];
-};
-F4 loadLo(const Prim& p) { return {{p.lo[0], p.lo[1], p.lo[2], 0.0f}}; }
-F4 loadHi(const Prim& p) { return {{p.hi[0], p.hi[1], p.hi[2], 0.0f}}; }
-F4 splat4(float f) { return {{f, f, f, f}}; }
-F4 min4(F4 a, F4 b) { return {{a.v[0] < b.v[0] ? a.v[0] : b.v[0], a.v[1] < b.v[1] ? a.v[1] : b.v[1], a.v[2] < b.v[2] ? a.v[2] : b.v[2], 0.0f}}; }
-F4 max4(F4 a, F4 b) { return {{a.v[0] > b.v[0] ? a.v[0] : b.v[0], a.v[1] > b.v[1] ? a.v[1] : b.v[1], a.v[2] > b.v[2] ? a.v[2] : b.v[2], 0.0f}}; }
-F4 centre4(F4 lo, F4 hi) {
-  F4 c;
-  for (int k = 0; k < 4; ++k) c.v[k] = 0.5f * lo.v[k] + 0.5f * hi.v[k];
-  return c;
-}
-void store4(float* out, F4 a) { std::memcpy(out, a.v, sizeof a.v); }
-#endif
 
 // A bin of the surface area heuristic: the boxes of its triangles and the bounds of their centres.
 struct Bin {
@@ -143,7 +120,7 @@ struct Build {
     for (std::uint32_t i = begin; i < end; ++i) {
       const Prim& p = prims[i];
       Bin& bin = bins[binOf(p)];
-      const F4 pl = loadLo(p), ph = loadHi(p), c = centre4(pl, ph);
+      const F4 pl = loadPadded4(p.lo), ph = loadMasked4(p.hi), c = centre4(pl, ph);
       bin.lo = min4(bin.lo, pl);
       bin.hi = max4(bin.hi, ph);
       bin.clo = min4(bin.clo, c);
@@ -418,236 +395,77 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned thread
 
 namespace detail {
 
-namespace {
-std::atomic<bool> avx2Off{false};
-
-}  // namespace
-
-// Why the float test keeps every node the double one keeps. With B = sceneBound + the largest origin
-// coordinate (both under 2^30) and every box widened by w = 2^-18 B on each side, a slab's numerator
-// (lo - w) - o in float is below lo - o by at least w/4 after the roundings of o, lo - w and the
-// difference (each at most 2^-24 B), and its product with the inverse direction (rounded once more, an
-// inverse between 2^-30 and 2^30) stays on the far side of the double product: the relative error
-// 2^-23 |lo - o| is under w/4. So every near distance in float is at most the double one and every far
-// distance at least it, entry <= exit holds whenever it holds in double, and the entry is a lower
-// bound. A direction component under 2^-30 (or zero, which the double test makes 1e-300) gets the
-// inverse +-2^120: the ray is then inside that slab in float whenever the double test can enter the
-// slab before the ray leaves the box along its largest component (at least 1/4, so the exit is within
-// 4 B) -- the double entry through that slab is at least 2^30 times the gap, the float gap is below
-// zero for any gap under w/4 -- and an exit through it is beyond every other exit. The normals' lower
-// bound in float differs from the double sum by at most 2^-22 (|m0| + |m1| + |m2|) (components of
-// normals at most 1): slack is twice that plus PacketCull::kSlack, and the thresholds round up.
-void PacketFloat::setCull(const PacketCull& cull, int r) {
-  double sum = 0.0;
-  for (int k = 0; k < 3; ++k) {
-    axis[k][r] = static_cast<float>(cull.axis[k][r]);
-    sum += std::fabs(cull.axis[k][r]);
-  }
-  slack[r] = roundUp(sum * 0x1p-21 + 2.0 * PacketCull::kSlack);
-  cap[r] = roundUp(cull.cap[r]);
-  below[r] = roundUp(cull.below[r]);
-  nearBelow[r] = roundUp(cull.nearBelow[r]);
-  within[r] = roundUp(cull.within[r]);
+PacketWalk::PacketWalk(const TriangleBvh& bvh, const Vec3* origins, const Vec3* dirs, int count,
+                       const PacketCull& cull)
+    : bvh_(bvh), cull_(cull), kernels_(packetKernels()), triangle_(kernels_.triangle) {
+  setRays(origins, dirs, count);
+  inFloat_ = kernels_.childrenFloat != nullptr &&
+             float_.set(&o_[0][0], &dir_[0][0], &inv_[0][0], count, bvh.sceneBound_, cull);
+  pushRoot(count);
 }
 
-bool PacketFloat::set(const double* origins, const double* dirs, const double* inverse, int count,
-                      double sceneBound, const PacketCull& cull) {
-  constexpr int W = PacketCull::kRays;
-  constexpr double kLimit = 1073741824.0;  // 2^30
-  double bound = sceneBound;
-  for (int r = 0; r < W; ++r) {
-    double largest = 0.0;
+void PacketWalk::setRays(const Vec3* origins, const Vec3* dirs, int count) {
+  for (int r = 0; r < kRays; ++r)
     for (int k = 0; k < 3; ++k) {
-      bound = std::max(bound, std::fabs(origins[k * W + r]));
-      largest = std::max(largest, std::fabs(dirs[k * W + r]));
+      const int s = r < count ? r : 0;
+      const double d = dirs[s][k] != 0.0 ? dirs[s][k] : std::copysign(1e-300, dirs[s][k]);
+      inv_[k][r] = 1.0 / d;
+      o_[k][r] = origins[s][k];
+      dir_[k][r] = dirs[s][k];
     }
-    // NaN fails every test here
-    if (!(largest >= 0.25 && largest <= kLimit)) return false;
-  }
-  if (!(bound >= 1e-18 && bound <= kLimit)) return false;  // the widening stays a normal float
-  const double w = std::ldexp(bound, -18);
-  widen = roundUp(w);
-  for (int k = 0; k < 3; ++k)
-    for (int r = 0; r < W; ++r) {
-      o[k][r] = static_cast<float>(origins[k * W + r]);
-      const double d = dirs[k * W + r];
-      inv[k][r] = std::fabs(d) >= 1.0 / kLimit ? static_cast<float>(inverse[k * W + r])
-                                                : std::copysign(0x1p120f, float(inverse[k * W + r]));
+}
+
+// The root holds the rays that meet its box; its hits mark matches no count, so the cull is applied when
+// it is popped, with every entry at 0.
+void PacketWalk::pushRoot(int count) {
+  Item& root = stack_[0];
+  root.node = 0;
+  root.mask = packetBoxBaseline(bvh_.nodes_[0], &o_[0][0], &inv_[0][0], root.t) & ((1u << count) - 1);
+  root.hits = ~std::uint64_t{0};
+  std::fill(root.t, root.t + kRays, 0.0);
+  top_ = root.mask ? 1 : 0;
+}
+
+const TriangleBvh::Node* PacketWalk::nextLeaf() {
+  while (top_ > 0) {
+    const Item item = stack_[--top_];  // a copy: reading the slot in place while pushing is slower
+    const TriangleBvh::Node& node = bvh_.nodes_[item.node];
+    const unsigned mask = item.hits == hits_ ? item.mask : packetKept(cull_, node, item.t, item.mask);
+    if (mask == 0) continue;
+    if (node.count > 0) {
+      leafMask_ = mask;
+      return &node;
     }
-  for (int r = 0; r < W; ++r) setCull(cull, r < count ? r : 0);
-  return true;
-}
-
-void usePacketAvx2(bool on) { avx2Off = !on; }
-
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-bool packetAvx2() {
-  static const bool has = __builtin_cpu_supports("avx2");
-  return has && !avx2Off.load(std::memory_order_relaxed);
-}
-
-namespace {
-// The lanes that meet the box (entry t0 <= exit t1) and pass PacketCull::keeps (lower: the normals' lower
-// bound less the slack), four doubles or eight floats at a time: the rule once for both precisions.
-#define CLOD_AVX2 __attribute__((target("avx2"))) inline
-CLOD_AVX2 __m256d lessThan(__m256d a, __m256d b) { return _mm256_cmp_pd(a, b, _CMP_LT_OQ); }
-CLOD_AVX2 __m256 lessThan(__m256 a, __m256 b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
-CLOD_AVX2 __m256d lessEqual(__m256d a, __m256d b) { return _mm256_cmp_pd(a, b, _CMP_LE_OQ); }
-CLOD_AVX2 __m256 lessEqual(__m256 a, __m256 b) { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
-CLOD_AVX2 __m256d both(__m256d a, __m256d b) { return _mm256_and_pd(a, b); }
-CLOD_AVX2 __m256 both(__m256 a, __m256 b) { return _mm256_and_ps(a, b); }
-CLOD_AVX2 __m256d either(__m256d a, __m256d b) { return _mm256_or_pd(a, b); }
-CLOD_AVX2 __m256 either(__m256 a, __m256 b) { return _mm256_or_ps(a, b); }
-CLOD_AVX2 unsigned bits(__m256d a) { return static_cast<unsigned>(_mm256_movemask_pd(a)); }
-CLOD_AVX2 unsigned bits(__m256 a) { return static_cast<unsigned>(_mm256_movemask_ps(a)); }
-template <class V>
-CLOD_AVX2 unsigned keptBits(V lower, V t0, V t1, V cap, V below, V nearBelow, V within) {
-  const V near = both(lessThan(lower, nearBelow), lessEqual(t0, within));
-  return bits(both(lessEqual(t0, t1), both(lessThan(lower, cap), either(lessThan(lower, below), near))));
-}
-#undef CLOD_AVX2
-}  // namespace
-
-__attribute__((target("avx2"))) void packetChildrenAvx2(const float* const lo[2], const float* const hi[2],
-                                                       const float* const nlo[2], const float* const nhi[2],
-                                                       const double* o, const double* inv, const PacketCull& cull,
-                                                       unsigned active, double* const entry[2], unsigned mask[2]) {
-  constexpr int W = TriangleBvh::kPacket;
-  static_assert(W == 16, "four registers of four rays");
-  for (int c = 0; c < 2; ++c) {
-    unsigned m = 0;
-    for (int h = 0; h < W; h += 4) {
-      if (!((active >> h) & 0xFu)) continue;  // the active rays of a packet are mostly neighbours
-      // The box test as forEachRayHit's; the normals' lower bound as TriangleBvh::minDot's sum, in its
-      // order (std::min(x, y) is min_pd(y, x)), less the slack; then PacketCull::keeps.
-      __m256d t0 = _mm256_setzero_pd(), t1 = _mm256_set1_pd(std::numeric_limits<double>::infinity());
-      __m256d lower = _mm256_setzero_pd();
-      for (int k = 0; k < 3; ++k) {
-        const __m256d ok = _mm256_loadu_pd(o + k * W + h), ik = _mm256_loadu_pd(inv + k * W + h);
-        const __m256d a = _mm256_mul_pd(_mm256_sub_pd(_mm256_set1_pd(lo[c][k]), ok), ik);
-        const __m256d b = _mm256_mul_pd(_mm256_sub_pd(_mm256_set1_pd(hi[c][k]), ok), ik);
-        t0 = _mm256_max_pd(_mm256_min_pd(a, b), t0);
-        t1 = _mm256_min_pd(_mm256_max_pd(a, b), t1);
-        const __m256d mk = _mm256_load_pd(cull.axis[k] + h);
-        const __m256d x = _mm256_mul_pd(mk, _mm256_set1_pd(nlo[c][k]));
-        const __m256d y = _mm256_mul_pd(mk, _mm256_set1_pd(nhi[c][k]));
-        lower = _mm256_add_pd(lower, _mm256_min_pd(y, x));
-      }
-      lower = _mm256_sub_pd(lower, _mm256_set1_pd(PacketCull::kSlack));
-      _mm256_storeu_pd(entry[c] + h, t0);
-      m |= keptBits(lower, t0, t1, _mm256_load_pd(cull.cap + h), _mm256_load_pd(cull.below + h),
-                    _mm256_load_pd(cull.nearBelow + h), _mm256_load_pd(cull.within + h))
-           << h;
-    }
-    mask[c] = m & active;
+    pushChildren(item.node, node, mask);
   }
+  return nullptr;
 }
 
-__attribute__((target("avx2"))) void packetChildrenAvx2f(const float* const lo[2], const float* const hi[2],
-                                                        const float* const nlo[2], const float* const nhi[2],
-                                                        const PacketFloat& f, unsigned active,
-                                                        double* const entry[2], unsigned mask[2]) {
-  constexpr int W = TriangleBvh::kPacket;
-  static_assert(W == 16, "two registers of eight rays");
-  for (int c = 0; c < 2; ++c) {
-    float wlo[3], whi[3];
-    for (int k = 0; k < 3; ++k) {
-      wlo[k] = lo[c][k] - f.widen;
-      whi[k] = hi[c][k] + f.widen;
-    }
-    unsigned m = 0;
-    for (int h = 0; h < W; h += 8) {
-      if (!((active >> h) & 0xFFu)) continue;
-      __m256 t0 = _mm256_setzero_ps(), t1 = _mm256_set1_ps(std::numeric_limits<float>::infinity());
-      __m256 lower = _mm256_setzero_ps();
-      for (int k = 0; k < 3; ++k) {
-        const __m256 ok = _mm256_load_ps(f.o[k] + h), ik = _mm256_load_ps(f.inv[k] + h);
-        const __m256 a = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(wlo[k]), ok), ik);
-        const __m256 b = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(whi[k]), ok), ik);
-        t0 = _mm256_max_ps(_mm256_min_ps(a, b), t0);
-        t1 = _mm256_min_ps(_mm256_max_ps(a, b), t1);
-        const __m256 mk = _mm256_load_ps(f.axis[k] + h);
-        lower = _mm256_add_ps(lower, _mm256_min_ps(_mm256_mul_ps(mk, _mm256_set1_ps(nhi[c][k])),
-                                                   _mm256_mul_ps(mk, _mm256_set1_ps(nlo[c][k]))));
-      }
-      lower = _mm256_sub_ps(lower, _mm256_load_ps(f.slack + h));
-      _mm256_storeu_pd(entry[c] + h, _mm256_cvtps_pd(_mm256_castps256_ps128(t0)));
-      _mm256_storeu_pd(entry[c] + h + 4, _mm256_cvtps_pd(_mm256_extractf128_ps(t0, 1)));
-      m |= keptBits(lower, t0, t1, _mm256_load_ps(f.cap + h), _mm256_load_ps(f.below + h),
-                    _mm256_load_ps(f.nearBelow + h), _mm256_load_ps(f.within + h))
-           << h;
-    }
-    mask[c] = m & active;
-  }
+// Tests both children of the inner node at index against the rays of mask in one kernel call and pushes
+// those some ray enters.
+void PacketWalk::pushChildren(std::uint32_t index, const TriangleBvh::Node& node, unsigned mask) {
+  Item l, r;
+  l.node = index + 1;
+  r.node = node.first;
+  l.hits = r.hits = hits_;
+  const TriangleBvh::Node* const child[2] = {&bvh_.nodes_[l.node], &bvh_.nodes_[r.node]};
+  double* const entry[2] = {l.t, r.t};
+  unsigned masks[2];
+  if (inFloat_)
+    kernels_.childrenFloat(child, float_, mask, entry, masks);
+  else
+    kernels_.children(child, &o_[0][0], &inv_[0][0], cull_, mask, entry, masks);
+  l.mask = masks[0];
+  r.mask = masks[1];
+  // The order forEachRayHit takes for the first ray that meets both children (nearer first, a child
+  // containing the origin last); the other rays follow it.
+  const unsigned both = l.mask & r.mask;
+  const bool left = both == 0 || TriangleBvh::leftFirst(l.t[__builtin_ctz(both)], r.t[__builtin_ctz(both)]);
+  const Item& first = left ? l : r;
+  const Item& second = left ? r : l;
+  if (second.mask) stack_[top_++] = second;
+  if (first.mask) stack_[top_++] = first;
 }
-
-namespace {
-// (x0 y0 + x1 y1) + x2 y2, Eigen's order for a 3-vector dot product.
-__attribute__((target("avx2"))) inline __m256d dot3(__m256d x0, __m256d y0, __m256d x1, __m256d y1, __m256d x2,
-                                                     __m256d y2) {
-  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(x0, y0), _mm256_mul_pd(x1, y1)), _mm256_mul_pd(x2, y2));
-}
-}  // namespace
-
-__attribute__((target("avx2"))) unsigned packetTriangleAvx2(const double* a, const double* b, const double* c,
-                                                           const double* o, const double* d, unsigned active,
-                                                           double* t) {
-  constexpr int W = TriangleBvh::kPacket;
-  static_assert(W == 16, "four registers of four rays");
-  // rayTriangle's steps (Eigen's cross products by component, its dot products as (x + y) + z, no fused
-  // multiply-add), every lane computed and the early returns turned into masks.
-  double e1[3], e2[3];
-  for (int k = 0; k < 3; ++k) {
-    e1[k] = b[k] - a[k];
-    e2[k] = c[k] - a[k];
-  }
-  const __m256d e1x = _mm256_set1_pd(e1[0]), e1y = _mm256_set1_pd(e1[1]), e1z = _mm256_set1_pd(e1[2]);
-  const __m256d e2x = _mm256_set1_pd(e2[0]), e2y = _mm256_set1_pd(e2[1]), e2z = _mm256_set1_pd(e2[2]);
-  const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
-  const __m256d inf = _mm256_set1_pd(std::numeric_limits<double>::infinity());
-  const __m256d sign = _mm256_set1_pd(-0.0);
-  unsigned m = 0;
-  for (int h = 0; h < W; h += 4) {
-    if (!((active >> h) & 0xFu)) continue;
-    const __m256d dx = _mm256_loadu_pd(d + h), dy = _mm256_loadu_pd(d + W + h), dz = _mm256_loadu_pd(d + 2 * W + h);
-    const __m256d pvx = _mm256_sub_pd(_mm256_mul_pd(dy, e2z), _mm256_mul_pd(dz, e2y));
-    const __m256d pvy = _mm256_sub_pd(_mm256_mul_pd(dz, e2x), _mm256_mul_pd(dx, e2z));
-    const __m256d pvz = _mm256_sub_pd(_mm256_mul_pd(dx, e2y), _mm256_mul_pd(dy, e2x));
-    const __m256d det = dot3(e1x, pvx, e1y, pvy, e1z, pvz);
-    // det != 0 and finite
-    __m256d ok = _mm256_and_pd(_mm256_cmp_pd(det, zero, _CMP_NEQ_OQ),
-                               _mm256_cmp_pd(_mm256_andnot_pd(sign, det), inf, _CMP_LT_OQ));
-    const __m256d inv = _mm256_div_pd(one, det);
-    const __m256d tvx = _mm256_sub_pd(_mm256_loadu_pd(o + h), _mm256_set1_pd(a[0]));
-    const __m256d tvy = _mm256_sub_pd(_mm256_loadu_pd(o + W + h), _mm256_set1_pd(a[1]));
-    const __m256d tvz = _mm256_sub_pd(_mm256_loadu_pd(o + 2 * W + h), _mm256_set1_pd(a[2]));
-    const __m256d u = _mm256_mul_pd(dot3(tvx, pvx, tvy, pvy, tvz, pvz), inv);
-    // not (u < 0 or u > 1): a NaN passes, as in rayTriangle
-    ok = _mm256_and_pd(ok, _mm256_and_pd(_mm256_cmp_pd(u, zero, _CMP_NLT_UQ), _mm256_cmp_pd(u, one, _CMP_NGT_UQ)));
-    const __m256d qvx = _mm256_sub_pd(_mm256_mul_pd(tvy, e1z), _mm256_mul_pd(tvz, e1y));
-    const __m256d qvy = _mm256_sub_pd(_mm256_mul_pd(tvz, e1x), _mm256_mul_pd(tvx, e1z));
-    const __m256d qvz = _mm256_sub_pd(_mm256_mul_pd(tvx, e1y), _mm256_mul_pd(tvy, e1x));
-    const __m256d v = _mm256_mul_pd(dot3(dx, qvx, dy, qvy, dz, qvz), inv);
-    ok = _mm256_and_pd(ok, _mm256_and_pd(_mm256_cmp_pd(v, zero, _CMP_NLT_UQ),
-                                         _mm256_cmp_pd(_mm256_add_pd(u, v), one, _CMP_NGT_UQ)));
-    const __m256d tt = _mm256_mul_pd(dot3(e2x, qvx, e2y, qvy, e2z, qvz), inv);
-    ok = _mm256_and_pd(ok, _mm256_cmp_pd(tt, zero, _CMP_GT_OQ));
-    _mm256_store_pd(t + h, tt);
-    m |= static_cast<unsigned>(_mm256_movemask_pd(ok)) << h;
-  }
-  return m & active;
-}
-#else
-bool packetAvx2() { return false; }
-void packetChildrenAvx2f(const float* const*, const float* const*, const float* const*, const float* const*,
-                         const PacketFloat&, unsigned, double* const*, unsigned*) {}
-unsigned packetTriangleAvx2(const double*, const double*, const double*, const double*, const double*, unsigned,
-                            double*) {
-  return 0;
-}
-void packetChildrenAvx2(const float* const*, const float* const*, const float* const*, const float* const*,
-                        const double*, const double*, const PacketCull&, unsigned, double* const*, unsigned*) {}
-#endif
 
 }  // namespace detail
 }  // namespace clod_haptics

@@ -11,6 +11,8 @@
 #include "clod_haptics/core/geometry.h"
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/triangle_bvh.h"
+#include "simd/dispatch.h"
+#include "simd/packet_avx2.h"
 #include "test_helpers.h"
 
 namespace {
@@ -251,10 +253,10 @@ void checkPackets(const TriangleMesh& mesh, int packets, std::uint64_t seed) {
 }
 
 TEST(TriangleBvh, PacketsGetEveryHitOfEachRay) {
-  // Both forms of the box test: AVX2 where the CPU has it, and SSE2.
+  // Both kernel sets: AVX2 where the CPU has it, and the baseline (SSE2 on x86-64).
   for (const bool avx2 : {true, false}) {
     detail::usePacketAvx2(avx2);
-    SCOPED_TRACE(detail::packetAvx2() ? "AVX2" : "SSE2");
+    SCOPED_TRACE(detail::packetAvx2() ? "AVX2" : "baseline");
     checkPackets(*clod_test::loadNormalized(clod_test::sharedMesh("head.off")), 300, 11);
     checkPackets(*clod_test::loadNormalized(clod_test::sharedMesh("elephant.off")), 200, 12);
     checkPackets(loadMesh(clod_test::testData("cube.obj")), 100, 13);
@@ -262,6 +264,7 @@ TEST(TriangleBvh, PacketsGetEveryHitOfEachRay) {
   detail::usePacketAvx2(true);
 }
 
+#if defined(CLOD_PACKET_AVX2)
 // The float child test against the double one, on boxes whose faces, edges or corners lie on the rays
 // and with every cull limit one step above the double test's value (within: exactly its entry): every
 // ray and child the double test keeps, the float test keeps, with an entry no greater. Directions with
@@ -290,20 +293,21 @@ TEST(TriangleBvh, FloatChildTestKeepsWhatTheDoubleTestKeeps) {
       }
     }
     // Two boxes through a point of one ray: the point on a face, an edge or a corner.
-    float lo[2][3], hi[2][3], nlo[2][3], nhi[2][3];
+    TriangleBvh::Node nodes[2] = {};
     for (int c = 0; c < 2; ++c) {
+      TriangleBvh::Node& node = nodes[c];
       const int r = int(u(rng) * W) % W;
       const double t = scale * 2.0 * u(rng);
       for (int k = 0; k < 3; ++k) {
         const double q = o[k][r] + t * d[k][r];
         const double size = scale * u(rng);
         const int where = int(u(rng) * 3);  // the point at the low face, the high face, or inside
-        lo[c][k] = float(where == 0 ? q : where == 1 ? q - size : q - 0.5 * size);
-        hi[c][k] = float(where == 0 ? q + size : where == 1 ? q : q + 0.5 * size);
-        if (lo[c][k] > hi[c][k]) std::swap(lo[c][k], hi[c][k]);
+        node.lo[k] = float(where == 0 ? q : where == 1 ? q - size : q - 0.5 * size);
+        node.hi[k] = float(where == 0 ? q + size : where == 1 ? q : q + 0.5 * size);
+        if (node.lo[k] > node.hi[k]) std::swap(node.lo[k], node.hi[k]);
         const double n1 = 2.0 * u(rng) - 1.0, n2 = 2.0 * u(rng) - 1.0;
-        nlo[c][k] = float(std::min(n1, n2));
-        nhi[c][k] = round % 3 ? float(std::max(n1, n2)) : nlo[c][k];  // a third single normals
+        node.normalLo[k] = float(std::min(n1, n2));
+        node.normalHi[k] = round % 3 ? float(std::max(n1, n2)) : node.normalLo[k];  // a third single normals
       }
     }
     const unsigned active = (std::uniform_int_distribution<unsigned>(1, (1u << W) - 1))(rng);
@@ -313,38 +317,31 @@ TEST(TriangleBvh, FloatChildTestKeepsWhatTheDoubleTestKeeps) {
       for (int k = 0; k < 3; ++k) cull.axis[k][r] = m[k];
       cull.cap[r] = cull.below[r] = cull.nearBelow[r] = cull.within[r] = inf;
     }
-    const float* const los[2] = {lo[0], lo[1]};
-    const float* const his[2] = {hi[0], hi[1]};
-    const float* const nlos[2] = {nlo[0], nlo[1]};
-    const float* const nhis[2] = {nhi[0], nhi[1]};
+    const TriangleBvh::Node* const child[2] = {&nodes[0], &nodes[1]};
     alignas(32) double entryD[2][W], entryF[2][W];
     double* const ed[2] = {entryD[0], entryD[1]};
     double* const ef[2] = {entryF[0], entryF[1]};
     unsigned maskD[2], maskF[2];
     // First the entries, then every limit set one step above the values of one child, chosen per ray.
-    detail::packetChildrenAvx2(los, his, nlos, nhis, &o[0][0], &inv[0][0], cull, active, ed, maskD);
+    detail::packetChildrenAvx2(child, &o[0][0], &inv[0][0], cull, active, ed, maskD);
     for (int r = 0; r < W; ++r) {
       const int c = r % 2;
-      TriangleBvh::Node node{};
-      for (int k = 0; k < 3; ++k) {
-        node.normalLo[k] = nlo[c][k];
-        node.normalHi[k] = nhi[c][k];
-      }
       const Vec3 m(cull.axis[0][r], cull.axis[1][r], cull.axis[2][r]);
-      const double lower = TriangleBvh::minDot(node, m) - PacketCull::kSlack;
+      const double lower = TriangleBvh::minDot(nodes[c], m) - PacketCull::kSlack;
       cull.cap[r] = std::nextafter(lower, inf);
       const int rule = round % 3;  // kept through below, or through nearBelow and within
       cull.below[r] = rule == 0 ? std::nextafter(lower, inf) : lower;
       cull.nearBelow[r] = std::nextafter(lower, inf);
       cull.within[r] = ((maskD[c] >> r) & 1u) ? entryD[c][r] : inf;
     }
-    detail::packetChildrenAvx2(los, his, nlos, nhis, &o[0][0], &inv[0][0], cull, active, ed, maskD);
+    detail::packetChildrenAvx2(child, &o[0][0], &inv[0][0], cull, active, ed, maskD);
     detail::PacketFloat f;
     double sceneBound = 0.0;
     for (int c = 0; c < 2; ++c)
-      for (int k = 0; k < 3; ++k) sceneBound = std::max({sceneBound, std::fabs(double(lo[c][k])), std::fabs(double(hi[c][k]))});
+      for (int k = 0; k < 3; ++k)
+        sceneBound = std::max({sceneBound, std::fabs(double(nodes[c].lo[k])), std::fabs(double(nodes[c].hi[k]))});
     ASSERT_TRUE(f.set(&o[0][0], &d[0][0], &inv[0][0], W, sceneBound, cull)) << "round " << round;
-    detail::packetChildrenAvx2f(los, his, nlos, nhis, f, active, ef, maskF);
+    detail::packetChildrenAvx2f(child, f, active, ef, maskF);
     for (int c = 0; c < 2; ++c) {
       ASSERT_EQ(maskD[c] & ~maskF[c], 0u) << "round " << round << " child " << c << ": a node kept in double is lost";
       ASSERT_EQ(maskF[c] & ~active, 0u);
@@ -421,5 +418,7 @@ TEST(TriangleBvh, PacketTriangleTestIsRayTriangleBitForBit) {
   EXPECT_GT(hits, compared / 10) << "the cases must hit often, or the distances are barely compared";
   EXPECT_GT(misses, compared / 10);
 }
+
+#endif  // CLOD_PACKET_AVX2
 
 }  // namespace

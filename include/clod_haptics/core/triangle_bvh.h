@@ -10,10 +10,6 @@
 #include <utility>
 #include <vector>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
 #include "clod_haptics/core/geometry.h"
 #include "clod_haptics/core/mesh.h"
 
@@ -44,10 +40,6 @@ struct DefaultInitAllocator : std::allocator<T> {
   }
 };
 
-/** \brief Whether forEachPacketHit uses AVX2: the CPU runs it (checked once) and it is not turned off. */
-bool packetAvx2();
-/** \brief Turns the AVX2 form off (or back on where the CPU has it), so tests cover both forms. */
-void usePacketAvx2(bool on);
 }  // namespace detail
 
 /**
@@ -75,18 +67,9 @@ struct PacketCull {
 
 namespace detail {
 /**
- * \brief forEachPacketHit's test of a node's two children with AVX2 (four rays per register, groups of
- * four without an active ray skipped), the same values as the SSE2 and plain forms: the box test (o and
- * inv are [3][16] row-major) and the cull. entry[c] gets the entry distances into child c (of the groups
- * tested) and mask[c] the active rays that meet its box and pass the cull. The caller checks packetAvx2().
- */
-void packetChildrenAvx2(const float* const lo[2], const float* const hi[2], const float* const nlo[2],
-                        const float* const nhi[2], const double* o, const double* inv, const PacketCull& cull,
-                        unsigned active, double* const entry[2], unsigned mask[2]);
-
-/**
- * \brief A packet in float for packetChildrenAvx2f: origins, inverse directions and PacketCull's arrays,
- * rounded so that its test keeps every node the double test keeps (see forEachPacketHit).
+ * \brief A packet in float for the float form of the packet walk's child test: origins, inverse directions
+ * and PacketCull's arrays, rounded so that its test keeps every node the double test keeps (why: see
+ * src/core/simd/packet_float.cpp).
  */
 struct PacketFloat {
   alignas(32) float o[3][PacketCull::kRays];
@@ -109,22 +92,15 @@ struct PacketFloat {
 };
 
 /**
- * \brief packetChildrenAvx2's test in float, eight rays per register: a node kept by the double test is
- * kept here (boxes widened, thresholds rounded up, see PacketFloat), entry[c] gets lower bounds of the
- * entry distances. The caller checks packetAvx2().
+ * \brief A packet kernel's triangle test: rayTriangle of the triangle (vertices a, b, c) against the active
+ * rays of a packet (o and d: [3][kRays] row-major origins and directions); returns the rays that hit, with
+ * their distances in t (32-byte aligned).
  */
-void packetChildrenAvx2f(const float* const lo[2], const float* const hi[2], const float* const nlo[2],
-                         const float* const nhi[2], const PacketFloat& f, unsigned active, double* const entry[2],
-                         unsigned mask[2]);
+using PacketTriangleTest = unsigned (*)(const double* a, const double* b, const double* c, const double* o,
+                                        const double* d, unsigned active, double* t);
 
-/**
- * \brief rayTriangle of one triangle (vertices a, b, c) against the active rays of a packet with AVX2, four
- * rays per register (groups of four without an active ray skipped): the same operations in the same
- * order, so the same decisions and distances bit for bit. o and d are [3][16] row-major origins and
- * directions; returns the active rays that hit, with their distances in t. The caller checks packetAvx2().
- */
-unsigned packetTriangleAvx2(const double* a, const double* b, const double* c, const double* o, const double* d,
-                            unsigned active, double* t);
+struct PacketKernels;
+class PacketWalk;
 }  // namespace detail
 
 /**
@@ -213,6 +189,8 @@ class TriangleBvh {
   // further on.
   static bool leftFirst(double tl, double tr) { return (tl == 0.0) == (tr == 0.0) ? tl <= tr : tr == 0.0; }
 
+  friend class detail::PacketWalk;
+
   const TriangleMesh& mesh_;
   NodeArray nodes_;
   std::vector<std::uint32_t> order_;
@@ -271,8 +249,7 @@ void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMa
       const double tl = enter(nodes_[left]), tr = enter(nodes_[right]);
       // Nearer child first, except that a child containing the origin (entered at 0) waits for a
       // sibling the ray reaches further on: a ray cast from a surface point finds the opposite surface
-      // first, and a caller's keep() can then prune the origin's own neighbourhood (the placement's
-      // rays: about a third fewer nodes and half the triangle tests).
+      // first, and a caller's keep() can then prune the origin's own neighbourhood.
       if (leftFirst(tl, tr)) {
         if (tr < 1e308) stack[top++] = {right, tr};
         if (tl < 1e308) stack[top++] = {left, tl};
@@ -284,154 +261,84 @@ void TriangleBvh::forEachRayHit(const Vec3& origin, const Vec3& dir, double& tMa
   }
 }
 
+namespace detail {
+/**
+ * \brief The traversal behind TriangleBvh::forEachPacketHit: the packet's rays laid out for the packet
+ * kernels (chosen once for the CPU, see src/core/simd) and the stack of pending nodes. Its steps are
+ * compiled in the core library; the template only reports the hits between them.
+ */
+class PacketWalk {
+ public:
+  static constexpr int kRays = PacketCull::kRays;
+
+  /** \brief Starts a walk of count rays (1 to kRays) down bvh, which must have nodes. */
+  PacketWalk(const TriangleBvh& bvh, const Vec3* origins, const Vec3* dirs, int count, const PacketCull& cull);
+  PacketWalk(const PacketWalk&) = delete;
+  PacketWalk& operator=(const PacketWalk&) = delete;
+
+  /** \brief The next leaf that some ray reaches and whose cull lets it in, or nullptr when the walk is over. */
+  const TriangleBvh::Node* nextLeaf();
+
+  /**
+   * \brief The rays of the current leaf that hit the triangle at entry i of order(), with their distances
+   * in t (32-byte aligned): rayTriangle's decisions and distances, bit for bit.
+   */
+  unsigned hits(std::uint32_t i, double* t) const {
+    const Triangle& v = bvh_.corners_[i];
+    const std::vector<Vec3>& p = bvh_.mesh_.vertices;
+    return triangle_(p[v[0]].data(), p[v[1]].data(), p[v[2]].data(), &o_[0][0], &dir_[0][0], leafMask_, t);
+  }
+
+  /** \brief Notes that a hit of ray r was reported: the caller may have changed ray r's cull entries. */
+  void reported(int r) {
+    ++hits_;
+    if (inFloat_) float_.setCull(cull_, r);
+  }
+
+ private:
+  struct Item {
+    std::uint32_t node;
+    unsigned mask;       // the rays that met the node's box and passed the cull when it was pushed
+    std::uint64_t hits;  // hits reported before it was pushed: if none since, the cull is unchanged
+    double t[kRays];     // where each ray of mask enters the node's box
+  };
+
+  void setRays(const Vec3* origins, const Vec3* dirs, int count);
+  void pushRoot(int count);
+  void pushChildren(std::uint32_t index, const TriangleBvh::Node& node, unsigned mask);
+
+  const TriangleBvh& bvh_;
+  const PacketCull& cull_;
+  const PacketKernels& kernels_;
+  PacketTriangleTest triangle_;
+  bool inFloat_ = false;  // the child test runs in float (float_), which keeps every node the double one keeps
+  unsigned leafMask_ = 0;
+  std::uint64_t hits_ = 0;
+  int top_ = 0;
+  // Per axis and ray (rays past count copy the first and stay masked out); a zero direction component
+  // becomes a tiny one of the same sign in inv_, as in forEachRayHit.
+  alignas(32) double o_[3][kRays];
+  alignas(32) double inv_[3][kRays];
+  alignas(32) double dir_[3][kRays];
+  PacketFloat float_;
+  Item stack_[128];  // at most one pending entry per level, as in forEachRayHit
+};
+}  // namespace detail
+
 template <class Hit>
 void TriangleBvh::forEachPacketHit(const Vec3* origins, const Vec3* dirs, int count, const PacketCull& cull,
                                    Hit&& hit) const {
-  constexpr int W = kPacket;
-  static_assert(W % 2 == 0 && W < 32, "rays go two per register, and a mask bit each");
   if (nodes_.empty() || count <= 0) return;
-  count = std::min(count, W);
-  // Per axis and ray (rays past count copy the first and stay masked out); a zero direction
-  // component becomes a tiny one of the same sign, as in forEachRayHit.
-  alignas(32) double o[3][W], inv[3][W], dv[3][W];
-  for (int r = 0; r < W; ++r)
-    for (int k = 0; k < 3; ++k) {
-      const int s = r < count ? r : 0;
-      const double d = dirs[s][k] != 0.0 ? dirs[s][k] : std::copysign(1e-300, dirs[s][k]);
-      inv[k][r] = 1.0 / d;
-      o[k][r] = origins[s][k];
-      dv[k][r] = dirs[s][k];
-    }
-  // Entry distance of every ray into a node's box and the mask of the rays that meet it: the same
-  // values as forEachRayHit's test (the near slab is the smaller product, there being no NaN), two
-  // rays per SSE2 register. Every lane is computed: skipping the lanes of rays that left the node
-  // costs more in branches than it saves.
-#if defined(__SSE2__)
-  __m128d oV[3][W / 2], invV[3][W / 2];
-  for (int k = 0; k < 3; ++k)
-    for (int h = 0; h < W / 2; ++h) {
-      oV[k][h] = _mm_set_pd(o[k][2 * h + 1], o[k][2 * h]);
-      invV[k][h] = _mm_set_pd(inv[k][2 * h + 1], inv[k][2 * h]);
-    }
-#endif
-  auto enter = [&](const Node& node, double* entry) {
-    unsigned mask = 0;
-#if defined(__SSE2__)
-    for (int h = 0; h < W / 2; ++h) {
-      __m128d t0 = _mm_setzero_pd(), t1 = _mm_set1_pd(std::numeric_limits<double>::infinity());
-      for (int k = 0; k < 3; ++k) {
-        const __m128d a = _mm_mul_pd(_mm_sub_pd(_mm_set1_pd(node.lo[k]), oV[k][h]), invV[k][h]);
-        const __m128d b = _mm_mul_pd(_mm_sub_pd(_mm_set1_pd(node.hi[k]), oV[k][h]), invV[k][h]);
-        t0 = _mm_max_pd(_mm_min_pd(a, b), t0);
-        t1 = _mm_min_pd(_mm_max_pd(a, b), t1);
+  detail::PacketWalk walk(*this, origins, dirs, std::min(count, kPacket), cull);
+  alignas(32) double t[kPacket];
+  while (const Node* leaf = walk.nextLeaf()) {
+    for (std::uint32_t i = leaf->first; i < leaf->first + leaf->count; ++i) {
+      for (unsigned got = walk.hits(i, t); got; got &= got - 1) {
+        const int r = __builtin_ctz(got);
+        hit(r, order_[i], t[r]);
+        walk.reported(r);
       }
-      _mm_storeu_pd(entry + 2 * h, t0);
-      mask |= static_cast<unsigned>(_mm_movemask_pd(_mm_cmple_pd(t0, t1))) << (2 * h);
     }
-#else
-    for (int r = 0; r < W; ++r) {
-      double t0 = 0.0, t1 = std::numeric_limits<double>::infinity();
-      for (int k = 0; k < 3; ++k) {
-        const double a = (node.lo[k] - o[k][r]) * inv[k][r], b = (node.hi[k] - o[k][r]) * inv[k][r];
-        t0 = std::max(std::min(a, b), t0);
-        t1 = std::min(std::max(a, b), t1);
-      }
-      entry[r] = t0;
-      mask |= static_cast<unsigned>(t0 <= t1) << r;
-    }
-#endif
-    return mask;
-  };
-  // The rays of active that pass the cull at node (entered at entry[r]).
-  auto culled = [&](const Node& node, const double* entry, unsigned active) {
-    unsigned mask = 0;
-    for (unsigned m = active; m; m &= m - 1) {
-      const int r = __builtin_ctz(m);
-      if (keeps(cull, r, node, entry[r])) mask |= 1u << r;
-    }
-    return mask;
-  };
-  // Where the CPU runs AVX2 both children are tested by one out-of-line call, four rays per register,
-  // or eight in float when the packet's values allow a float test that keeps every node this one keeps.
-  const bool avx2 = W == 16 && detail::packetAvx2();
-  detail::PacketFloat packetFloat;
-  const bool inFloat = avx2 && packetFloat.set(&o[0][0], &dv[0][0], &inv[0][0], count, sceneBound_, cull);
-  struct Item {
-    std::uint32_t node;
-    unsigned mask;     // the rays that met the node's box and passed the cull when it was pushed
-    std::uint64_t hits;  // hits reported before it was pushed: if none since, the cull is unchanged
-    double t[W];
-  };
-  std::uint64_t hits = 0;
-  Item stack[128];  // at most one pending entry per level, as in forEachRayHit
-  int top = 0;
-  stack[0].node = 0;
-  stack[0].mask = enter(nodes_[0], stack[0].t) & ((1u << count) - 1);
-  stack[0].hits = ~std::uint64_t{0};  // not culled yet
-  std::fill(stack[0].t, stack[0].t + W, 0.0);
-  if (stack[0].mask) top = 1;
-  while (top > 0) {
-    const Item item = stack[--top];  // a copy: reading the slot in place while pushing is slower
-    const Node& node = nodes_[item.node];
-    const unsigned mask = item.hits == hits ? item.mask : culled(node, item.t, item.mask);
-    if (mask == 0) continue;
-    if (node.count > 0) {
-      for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
-        const std::uint32_t tri = order_[i];
-        const Triangle& v = corners_[i];
-        const Vec3 &a = mesh_.vertices[v[0]], &b = mesh_.vertices[v[1]], &c = mesh_.vertices[v[2]];
-        if (avx2) {  // the same tests, four rays at a time, hits reported in the same order
-          alignas(32) double t[W];
-          const unsigned got = detail::packetTriangleAvx2(a.data(), b.data(), c.data(), &o[0][0], &dv[0][0], mask, t);
-          for (unsigned m = got; m; m &= m - 1) {
-            const int r = __builtin_ctz(m);
-            ++hits;
-            hit(r, tri, t[r]);
-            if (inFloat) packetFloat.setCull(cull, r);
-          }
-          continue;
-        }
-        for (unsigned m = mask; m; m &= m - 1) {
-          const int r = __builtin_ctz(m);
-          double t;
-          if (rayTriangle(origins[r], dirs[r], a, b, c, t)) {
-            ++hits;
-            hit(r, tri, t);
-          }
-        }
-      }
-      continue;
-    }
-    Item l, r;
-    l.node = item.node + 1;
-    r.node = node.first;
-    l.hits = r.hits = hits;
-    const Node &ln = nodes_[l.node], &rn = nodes_[r.node];
-    if (avx2) {
-      const float* const lo[2] = {ln.lo, rn.lo};
-      const float* const hi[2] = {ln.hi, rn.hi};
-      const float* const nlo[2] = {ln.normalLo, rn.normalLo};
-      const float* const nhi[2] = {ln.normalHi, rn.normalHi};
-      double* const entry[2] = {l.t, r.t};
-      unsigned masks[2];
-      if (inFloat)
-        detail::packetChildrenAvx2f(lo, hi, nlo, nhi, packetFloat, mask, entry, masks);
-      else
-        detail::packetChildrenAvx2(lo, hi, nlo, nhi, &o[0][0], &inv[0][0], cull, mask, entry, masks);
-      l.mask = masks[0];
-      r.mask = masks[1];
-    } else {
-      l.mask = culled(ln, l.t, enter(ln, l.t) & mask);
-      r.mask = culled(rn, r.t, enter(rn, r.t) & mask);
-    }
-    // The order forEachRayHit takes for the first ray that meets both children (nearer first, a child
-    // containing the origin last); the other rays follow it.
-    const unsigned both = l.mask & r.mask;
-    const bool left = both == 0 || leftFirst(l.t[__builtin_ctz(both)], r.t[__builtin_ctz(both)]);
-    const Item& first = left ? l : r;
-    const Item& second = left ? r : l;
-    if (second.mask) stack[top++] = second;
-    if (first.mask) stack[top++] = first;
   }
 }
 
