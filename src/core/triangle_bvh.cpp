@@ -92,6 +92,13 @@ Box boxOf(F4 lo, F4 hi) {
   return b;
 }
 
+// Where a centre falls among the bins along the axis of a split.
+struct Binning {
+  int axis;
+  double lo, scale;  // the centres' lower bound along axis, bins per unit length
+  int binOf(const Prim& p) const { return std::min(kBins - 1, static_cast<int>((centreOf(p, axis) - lo) * scale)); }
+};
+
 struct Build {
   const TriangleMesh& mesh;
   PrimArray& prims;
@@ -104,22 +111,31 @@ struct Build {
     int axis = 0;
     for (int k = 1; k < 3; ++k)
       if (double(cbox.hi[k]) - cbox.lo[k] > double(cbox.hi[axis]) - cbox.lo[axis]) axis = k;
-    const double lo = cbox.lo[axis], extent = double(cbox.hi[axis]) - cbox.lo[axis];
-    auto median = [&]() {
-      const std::uint32_t mid = begin + (end - begin) / 2;
-      std::nth_element(prims.begin() + begin, prims.begin() + mid, prims.begin() + end,
-                       [&](const Prim& a, const Prim& b) { return centreOf(a, axis) < centreOf(b, axis); });
-      child[0] = centreBox(begin, mid);
-      child[1] = centreBox(mid, end);
-      return mid;
-    };
-    if (!(extent > 0.0) || !std::isfinite(extent) || end - begin < 16 || depth >= kMaxSahDepth) return median();
-    const double scale = kBins / extent;
-    auto binOf = [&](const Prim& p) { return std::min(kBins - 1, static_cast<int>((centreOf(p, axis) - lo) * scale)); };
+    const double extent = double(cbox.hi[axis]) - cbox.lo[axis];
+    if (!(extent > 0.0) || !std::isfinite(extent) || end - begin < 16 || depth >= kMaxSahDepth)
+      return median(begin, end, axis, child);
+    const Binning binning{axis, cbox.lo[axis], kBins / extent};
     Bin bins[kBins];
+    fillBins(begin, end, binning, bins);
+    const int best = cheapestSplit(bins);
+    if (best < 0) return median(begin, end, axis, child);
+    return partition(begin, end, binning, bins, best, child);
+  }
+
+  // Splits prims[begin, end) at the median centre along axis.
+  std::uint32_t median(std::uint32_t begin, std::uint32_t end, int axis, Box child[2]) const {
+    const std::uint32_t mid = begin + (end - begin) / 2;
+    std::nth_element(prims.begin() + begin, prims.begin() + mid, prims.begin() + end,
+                     [&](const Prim& a, const Prim& b) { return centreOf(a, axis) < centreOf(b, axis); });
+    child[0] = centreBox(begin, mid);
+    child[1] = centreBox(mid, end);
+    return mid;
+  }
+
+  void fillBins(std::uint32_t begin, std::uint32_t end, const Binning& binning, Bin bins[kBins]) const {
     for (std::uint32_t i = begin; i < end; ++i) {
       const Prim& p = prims[i];
-      Bin& bin = bins[binOf(p)];
+      Bin& bin = bins[binning.binOf(p)];
       const F4 pl = loadPadded4(p.lo), ph = loadMasked4(p.hi), c = centre4(pl, ph);
       bin.lo = min4(bin.lo, pl);
       bin.hi = max4(bin.hi, ph);
@@ -127,6 +143,11 @@ struct Build {
       bin.chi = max4(bin.chi, c);
       ++bin.count;
     }
+  }
+
+  // The bin boundary i (bins below i go left) of the least cost, or -1 when every boundary leaves a side
+  // empty.
+  static int cheapestSplit(const Bin bins[kBins]) {
     double rightArea[kBins];
     std::uint32_t rightCount[kBins];
     Box acc;
@@ -151,12 +172,18 @@ struct Build {
         bestSplit = i;
       }
     }
-    if (bestSplit < 0) return median();
+    return bestSplit;
+  }
+
+  // Moves the triangles of the bins below split in front of the others; the sides' centre bounds from
+  // the bins.
+  std::uint32_t partition(std::uint32_t begin, std::uint32_t end, const Binning& binning, const Bin bins[kBins],
+                          int split, Box child[2]) const {
     const auto mid = std::partition(prims.begin() + begin, prims.begin() + end,
-                                    [&](const Prim& p) { return binOf(p) < bestSplit; });
+                                    [&](const Prim& p) { return binning.binOf(p) < split; });
     for (int side = 0; side < 2; ++side) {
       child[side] = Box();
-      for (int i = side ? bestSplit : 0; i < (side ? kBins : bestSplit); ++i)
+      for (int i = side ? split : 0; i < (side ? kBins : split); ++i)
         if (bins[i].count) child[side].extend(boxOf(bins[i].clo, bins[i].chi));
     }
     return static_cast<std::uint32_t>(mid - prims.begin());
@@ -225,103 +252,197 @@ struct Build {
   }
 };
 
-// Builds the nodes over prims (permuting them into leaf order).
-void buildNodes(const TriangleMesh& mesh, PrimArray& prims, int leafSize, bool parallel,
-                TriangleBvh::NodeArray& nodes) {
-  using Node = TriangleBvh::Node;
-  const std::size_t n = prims.size();
-  const Build b{mesh, prims, std::max(1, leafSize)};
-  const std::uint32_t count = static_cast<std::uint32_t>(n);
-  if (!parallel) {
-    // At most 2n - 1 nodes: reserving that never reallocates, and untouched capacity is never resident.
-    nodes.reserve(2 * n);
-    b.build(nodes, 0, count, b.centreBox(0, count), 0);
-    return;
+// The build on two threads: the two top levels' splits first (the second level's two on two threads),
+// then the up to four subtrees below them built into arrays of their own by two threads, each taking the
+// largest one left, then appended in the serial build's depth-first order with their node indices
+// shifted: the same tree as the serial build, node for node, with the work balanced however uneven the
+// splits.
+class TwoThreadBuild {
+ public:
+  explicit TwoThreadBuild(const Build& build) : b_(build), count_(static_cast<std::uint32_t>(build.prims.size())) {}
+
+  void run(TriangleBvh::NodeArray& nodes) {
+    splitTopLevels();
+    forEachLargestFirst([&](Subtree& s) {
+      s.nodes.reserve(2 * std::size_t(s.end - s.begin));
+      b_.build(s.nodes, s.begin, s.end, s.cbox, s.depth);
+    });
+    std::uint32_t halfNode[2];
+    nodes.resize(placeSubtrees(halfNode));
+    forEachLargestFirst([&](Subtree& s) { copyShifted(s, nodes); });
+    joinTopLevels(nodes, halfNode);
   }
-  // The two top levels' splits first (the second level's two on two threads), then the up to four
-  // subtrees below them built into arrays of their own by two threads, each taking the largest one
-  // left, then appended in the serial build's depth-first order with their node indices shifted: the
-  // same tree as the serial build, node for node, with the work balanced however uneven the splits.
-  struct Task {
+
+ private:
+  struct Subtree {
     std::uint32_t begin, end;
     Box cbox;
     int depth;
     TriangleBvh::NodeArray nodes;
+    std::uint32_t base;  // the index of its root in the whole tree
   };
-  const std::uint32_t leaf = static_cast<std::uint32_t>(b.leafSize);
-  Box half[2];  // centre bounds of each half
-  const std::uint32_t mid = b.split(0, count, b.centreBox(0, count), 0, half);
-  const std::uint32_t halves[3] = {0, mid, count};
-  std::uint32_t quarter[2];  // each half's split, or its end when the half is a leaf
-  Box quarters[2][2];
-  auto splitHalf = [&](int h) {
-    const std::uint32_t begin = halves[h], end = halves[h + 1];
-    quarter[h] = end - begin > leaf ? b.split(begin, end, half[h], 1, quarters[h]) : end;
-  };
-  detail::runParallel(2, [&](unsigned h) { splitHalf(static_cast<int>(h)); });
-  std::vector<Task> tasks;
-  tasks.reserve(4);
-  for (int h = 0; h < 2; ++h) {
-    if (quarter[h] == halves[h + 1]) {
-      tasks.push_back({halves[h], halves[h + 1], half[h], 1, {}});
-    } else {
-      tasks.push_back({halves[h], quarter[h], quarters[h][0], 2, {}});
-      tasks.push_back({quarter[h], halves[h + 1], quarters[h][1], 2, {}});
-    }
-  }
-  std::vector<std::size_t> bySize(tasks.size());
-  for (std::size_t i = 0; i < bySize.size(); ++i) bySize[i] = i;
-  std::sort(bySize.begin(), bySize.end(), [&](std::size_t x, std::size_t y) {
-    return tasks[x].end - tasks[x].begin > tasks[y].end - tasks[y].begin;
-  });
-  std::atomic<std::size_t> next{0};
-  auto work = [&]() {
-    for (std::size_t i; (i = next.fetch_add(1)) < bySize.size();) {
-      Task& task = tasks[bySize[i]];
-      task.nodes.reserve(2 * std::size_t(task.end - task.begin));
-      b.build(task.nodes, task.begin, task.end, task.cbox, task.depth);
-    }
-  };
-  detail::runParallel(2, [&](unsigned) { work(); });
-  // The subtrees' places in the serial build's depth-first order: the root, then per half its own node
-  // (when it was split) and its subtrees. They are copied there, their node indices shifted, in parallel.
-  std::vector<std::uint32_t> base(tasks.size());
-  std::uint32_t halfNode[2];
-  std::uint32_t size = 1;  // the root
-  std::size_t t = 0;
-  for (int h = 0; h < 2; ++h) {
-    halfNode[h] = size;
-    if (quarter[h] != halves[h + 1]) ++size;  // the half's own node
-    for (const std::size_t end = t + (quarter[h] == halves[h + 1] ? 1 : 2); t < end; ++t) {
-      base[t] = size;
-      size += static_cast<std::uint32_t>(tasks[t].nodes.size());
-    }
-  }
-  nodes.resize(size);
-  std::atomic<std::size_t> nextCopy{0};
-  detail::runParallel(2, [&](unsigned) {
-    for (std::size_t i; (i = nextCopy.fetch_add(1)) < bySize.size();) {
-      Task& task = tasks[bySize[i]];
-      const std::uint32_t shift = base[bySize[i]];
-      Node* out = nodes.data() + shift;
-      for (const Node& node : task.nodes) {
-        *out = node;
-        if (node.count == 0) out->first += shift;
-        ++out;
+
+  // Whether half h (of the root's split) was split again, or is a subtree of its own.
+  bool halfSplit(int h) const { return quarter_[h] != halves_[h + 1]; }
+
+  // The root's split, its halves' splits on two threads, and the subtrees below them, largest first.
+  void splitTopLevels() {
+    Box half[2];  // centre bounds of each half
+    const std::uint32_t mid = b_.split(0, count_, b_.centreBox(0, count_), 0, half);
+    halves_[1] = mid;
+    halves_[2] = count_;
+    Box quarters[2][2];
+    const std::uint32_t leaf = static_cast<std::uint32_t>(b_.leafSize);
+    detail::runParallel(2, [&](unsigned h) {
+      const std::uint32_t begin = halves_[h], end = halves_[h + 1];
+      quarter_[h] = end - begin > leaf ? b_.split(begin, end, half[h], 1, quarters[h]) : end;
+    });
+    subtrees_.reserve(4);
+    for (int h = 0; h < 2; ++h) {
+      if (!halfSplit(h)) {
+        subtrees_.push_back({halves_[h], halves_[h + 1], half[h], 1, {}, 0});
+      } else {
+        subtrees_.push_back({halves_[h], quarter_[h], quarters[h][0], 2, {}, 0});
+        subtrees_.push_back({quarter_[h], halves_[h + 1], quarters[h][1], 2, {}, 0});
       }
-      TriangleBvh::NodeArray().swap(task.nodes);
     }
-  });
-  t = 0;
-  for (int h = 0; h < 2; ++h) {
-    if (quarter[h] == halves[h + 1]) {
-      ++t;
-      continue;
-    }
-    Build::join(nodes[halfNode[h]], nodes[base[t]], nodes[base[t + 1]], base[t + 1]);
-    t += 2;
+    bySize_.resize(subtrees_.size());
+    for (std::size_t i = 0; i < bySize_.size(); ++i) bySize_[i] = i;
+    std::sort(bySize_.begin(), bySize_.end(), [&](std::size_t x, std::size_t y) {
+      return subtrees_[x].end - subtrees_[x].begin > subtrees_[y].end - subtrees_[y].begin;
+    });
   }
-  Build::join(nodes[0], nodes[halfNode[0]], nodes[halfNode[1]], halfNode[1]);
+
+  // Runs work(subtree) for every subtree on two threads, each taking the largest one left.
+  template <class Work>
+  void forEachLargestFirst(Work&& work) {
+    std::atomic<std::size_t> next{0};
+    detail::runParallel(2, [&](unsigned) {
+      for (std::size_t i; (i = next.fetch_add(1)) < bySize_.size();) work(subtrees_[bySize_[i]]);
+    });
+  }
+
+  // The subtrees' places in the serial build's depth-first order: the root, then per half its own node
+  // (when it was split) and its subtrees. Returns the number of nodes.
+  std::uint32_t placeSubtrees(std::uint32_t halfNode[2]) {
+    std::uint32_t size = 1;  // the root
+    std::size_t t = 0;
+    for (int h = 0; h < 2; ++h) {
+      halfNode[h] = size;
+      if (halfSplit(h)) ++size;  // the half's own node
+      for (const std::size_t end = t + (halfSplit(h) ? 2 : 1); t < end; ++t) {
+        subtrees_[t].base = size;
+        size += static_cast<std::uint32_t>(subtrees_[t].nodes.size());
+      }
+    }
+    return size;
+  }
+
+  // Copies a subtree to its place, its inner nodes' child indices shifted, and frees its array.
+  static void copyShifted(Subtree& s, TriangleBvh::NodeArray& nodes) {
+    TriangleBvh::Node* out = nodes.data() + s.base;
+    for (const TriangleBvh::Node& node : s.nodes) {
+      *out = node;
+      if (node.count == 0) out->first += s.base;
+      ++out;
+    }
+    TriangleBvh::NodeArray().swap(s.nodes);
+  }
+
+  // The nodes above the subtrees: the halves that were split, then the root.
+  void joinTopLevels(TriangleBvh::NodeArray& nodes, const std::uint32_t halfNode[2]) const {
+    std::size_t t = 0;
+    for (int h = 0; h < 2; ++h) {
+      if (!halfSplit(h)) {
+        ++t;
+        continue;
+      }
+      const std::uint32_t left = subtrees_[t].base, right = subtrees_[t + 1].base;
+      Build::join(nodes[halfNode[h]], nodes[left], nodes[right], right);
+      t += 2;
+    }
+    Build::join(nodes[0], nodes[halfNode[0]], nodes[halfNode[1]], halfNode[1]);
+  }
+
+  const Build& b_;
+  const std::uint32_t count_;
+  std::uint32_t halves_[3] = {0, 0, 0};  // the root's range and split
+  std::uint32_t quarter_[2] = {0, 0};    // each half's split, or its end when the half is a leaf
+  std::vector<Subtree> subtrees_;
+  std::vector<std::size_t> bySize_;  // subtrees_'s indices, largest first
+};
+
+// Builds the nodes over prims (permuting them into leaf order).
+void buildNodes(const TriangleMesh& mesh, PrimArray& prims, int leafSize, bool parallel,
+                TriangleBvh::NodeArray& nodes) {
+  const Build b{mesh, prims, std::max(1, leafSize)};
+  if (parallel) {
+    TwoThreadBuild(b).run(nodes);
+    return;
+  }
+  // At most 2n - 1 nodes: reserving that never reallocates, and untouched capacity is never resident.
+  const std::uint32_t count = static_cast<std::uint32_t>(prims.size());
+  nodes.reserve(2 * std::size_t(count));
+  b.build(nodes, 0, count, b.centreBox(0, count), 0);
+}
+
+// Runs part(begin, end) over [0, n): in two halves on two threads when parallel.
+template <class Part>
+void inHalves(bool parallel, std::size_t n, Part&& part) {
+  if (parallel)
+    detail::runParallel(2, [&](unsigned h) { h ? part(n / 2, n) : part(0, n / 2); });
+  else
+    part(0, n);
+}
+
+// Every vertex rounded outward once (a vertex is shared by about six triangles), per vertex: down x y z,
+// up x y z. The boxes are widened by 2^-32 of the largest coordinate first: the slab tests (in double) and
+// rayTriangle round, so without it a ray through a box's face, edge or corner -- a ray aimed at a vertex,
+// a coordinate that is a float already -- could miss the box of a triangle that rayTriangle says it hits.
+std::vector<float, detail::DefaultInitAllocator<float>> roundedVertices(const TriangleMesh& mesh, bool parallel) {
+  double bound = 0.0;
+  for (const Vec3& v : mesh.vertices) bound = std::max(bound, v.cwiseAbs().maxCoeff());
+  const double margin = std::ldexp(bound, -32);
+  std::vector<float, detail::DefaultInitAllocator<float>> rounded(6 * mesh.vertices.size());
+  inHalves(parallel, mesh.vertices.size(), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t v = begin; v < end; ++v)
+      for (int k = 0; k < 3; ++k) {
+        rounded[6 * v + k] = roundDown(mesh.vertices[v][k] - margin);
+        rounded[6 * v + 3 + k] = roundUp(mesh.vertices[v][k] + margin);
+      }
+  });
+  return rounded;
+}
+
+// The build's record of one triangle: the box of its corners' rounded coordinates (see roundedVertices).
+Prim primOf(const float* rounded, const Triangle& corners, std::uint32_t index) {
+  Box box;
+  for (int v = 0; v < 3; ++v) {
+    const float* r = rounded + 6 * std::size_t(corners[v]);
+    for (int k = 0; k < 3; ++k) {
+      box.lo[k] = std::min(box.lo[k], r[k]);
+      box.hi[k] = std::max(box.hi[k], r[3 + k]);
+    }
+  }
+  Prim p;
+  for (int k = 0; k < 3; ++k) {
+    p.lo[k] = box.lo[k];
+    p.hi[k] = box.hi[k];
+  }
+  p.zero = 0.0f;
+  p.index = index;
+  return p;
+}
+
+// The build's records of every triangle, in the mesh's order.
+PrimArray primsOf(const TriangleMesh& mesh, bool parallel) {
+  const auto rounded = roundedVertices(mesh, parallel);
+  PrimArray prims(mesh.size());
+  inHalves(parallel, prims.size(), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t t = begin; t < end; ++t)
+      prims[t] = primOf(rounded.data(), mesh.triangles[t], static_cast<std::uint32_t>(t));
+  });
+  return prims;
 }
 
 }  // namespace
@@ -329,74 +450,24 @@ void buildNodes(const TriangleMesh& mesh, PrimArray& prims, int leafSize, bool p
 TriangleBvh::TriangleBvh(const TriangleMesh& mesh, int leafSize, unsigned threads) : mesh_(mesh) {
   const std::size_t n = mesh.size();
   if (n == 0) return;
-  // Every vertex rounded outward once (a vertex is shared by about six triangles), then each
-  // triangle's box from its three corners. The boxes are widened by 2^-32 of the largest coordinate
-  // first: the slab tests (in double) and rayTriangle round, so without it a ray through a box's face,
-  // edge or corner -- a ray aimed at a vertex, a coordinate that is a float already -- could miss the box
-  // of a triangle that rayTriangle says it hits.
-  const std::size_t nv = mesh.vertices.size();
-  double bound = 0.0;
-  for (const Vec3& v : mesh.vertices) bound = std::max(bound, v.cwiseAbs().maxCoeff());
-  const double margin = std::ldexp(bound, -32);
-  std::vector<float, detail::DefaultInitAllocator<float>> rounded(6 * nv);  // per vertex: down x y z, up x y z
-  PrimArray prims(n);
-  auto roundVertices = [&](std::size_t begin, std::size_t end) {
-    for (std::size_t v = begin; v < end; ++v)
-      for (int k = 0; k < 3; ++k) {
-        rounded[6 * v + k] = roundDown(mesh.vertices[v][k] - margin);
-        rounded[6 * v + 3 + k] = roundUp(mesh.vertices[v][k] + margin);
-      }
-  };
-  auto fill = [&](std::size_t begin, std::size_t end) {
-    for (std::size_t t = begin; t < end; ++t) {
-      Prim& p = prims[t];
-      Box box;
-      for (int v = 0; v < 3; ++v) {
-        const float* r = &rounded[6 * std::size_t(mesh.triangles[t][v])];
-        for (int k = 0; k < 3; ++k) {
-          box.lo[k] = std::min(box.lo[k], r[k]);
-          box.hi[k] = std::max(box.hi[k], r[3 + k]);
-        }
-      }
-      for (int k = 0; k < 3; ++k) {
-        p.lo[k] = box.lo[k];
-        p.hi[k] = box.hi[k];
-      }
-      p.zero = 0.0f;
-      p.index = static_cast<std::uint32_t>(t);
-    }
-  };
   const bool parallel = threads >= 2 && n >= 4096;
-  if (parallel) {
-    detail::runParallel(2, [&](unsigned h) { h ? roundVertices(nv / 2, nv) : roundVertices(0, nv / 2); });
-    detail::runParallel(2, [&](unsigned h) { h ? fill(n / 2, n) : fill(0, n / 2); });
-  } else {
-    roundVertices(0, nv);
-    fill(0, n);
-  }
-  decltype(rounded)().swap(rounded);
+  PrimArray prims = primsOf(mesh, parallel);
   buildNodes(mesh, prims, leafSize, parallel, nodes_);
-  if (!nodes_.empty())
-    for (int k = 0; k < 3; ++k)
-      sceneBound_ = std::max({sceneBound_, std::fabs(double(nodes_[0].lo[k])), std::fabs(double(nodes_[0].hi[k]))});
+  for (int k = 0; k < 3; ++k)
+    sceneBound_ = std::max({sceneBound_, std::fabs(double(nodes_[0].lo[k])), std::fabs(double(nodes_[0].hi[k]))});
   order_.resize(n);
   corners_.resize(n);
-  auto leafOrder = [&](std::size_t begin, std::size_t end) {
+  inHalves(parallel, n, [&](std::size_t begin, std::size_t end) {
     for (std::size_t i = begin; i < end; ++i) {
       order_[i] = prims[i].index;
       corners_[i] = mesh.triangles[prims[i].index];
     }
-  };
-  if (parallel)
-    detail::runParallel(2, [&](unsigned h) { h ? leafOrder(n / 2, n) : leafOrder(0, n / 2); });
-  else
-    leafOrder(0, n);
+  });
 }
 
 namespace detail {
 
-PacketWalk::PacketWalk(const TriangleBvh& bvh, const Vec3* origins, const Vec3* dirs, int count,
-                       const PacketCull& cull)
+PacketWalk::PacketWalk(const TriangleBvh& bvh, const Vec3* origins, const Vec3* dirs, int count, const PacketCull& cull)
     : bvh_(bvh), cull_(cull), kernels_(packetKernels()), triangle_(kernels_.triangle) {
   setRays(origins, dirs, count);
   inFloat_ = kernels_.childrenFloat != nullptr &&
