@@ -475,7 +475,7 @@ PacketWalk::PacketWalk(const TriangleBvh& bvh, const Vec3* origins, const Vec3* 
   pushRoot(count);
 }
 
-void PacketWalk::setRays(const Vec3* origins, const Vec3* dirs, int count) {
+inline void PacketWalk::setRays(const Vec3* origins, const Vec3* dirs, int count) {
   for (int r = 0; r < kRays; ++r)
     for (int k = 0; k < 3; ++k) {
       const int s = r < count ? r : 0;
@@ -488,7 +488,7 @@ void PacketWalk::setRays(const Vec3* origins, const Vec3* dirs, int count) {
 
 // The root holds the rays that meet its box; its hits mark matches no count, so the cull is applied when
 // it is popped, with every entry at 0.
-void PacketWalk::pushRoot(int count) {
+inline void PacketWalk::pushRoot(int count) {
   Item& root = stack_[0];
   root.node = 0;
   root.mask = packetBoxBaseline(bvh_.nodes_[0], &o_[0][0], &inv_[0][0], root.t) & ((1u << count) - 1);
@@ -514,7 +514,7 @@ const TriangleBvh::Node* PacketWalk::nextLeaf() {
 
 // Tests both children of the inner node at index against the rays of mask in one kernel call and pushes
 // those some ray enters.
-void PacketWalk::pushChildren(std::uint32_t index, const TriangleBvh::Node& node, unsigned mask) {
+inline void PacketWalk::pushChildren(std::uint32_t index, const TriangleBvh::Node& node, unsigned mask) {
   Item l, r;
   l.node = index + 1;
   r.node = node.first;

@@ -303,9 +303,11 @@ class PacketWalk {
     double t[kRays];     // where each ray of mask enters the node's box
   };
 
-  void setRays(const Vec3* origins, const Vec3* dirs, int count);
-  void pushRoot(int count);
-  void pushChildren(std::uint32_t index, const TriangleBvh::Node& node, unsigned mask);
+  // Steps of the constructor and nextLeaf, defined in triangle_bvh.cpp (their only caller); inline, so that
+  // they are inlined there although the library is position independent.
+  inline void setRays(const Vec3* origins, const Vec3* dirs, int count);
+  inline void pushRoot(int count);
+  inline void pushChildren(std::uint32_t index, const TriangleBvh::Node& node, unsigned mask);
 
   const TriangleBvh& bvh_;
   const PacketCull& cull_;

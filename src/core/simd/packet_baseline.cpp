@@ -13,19 +13,20 @@ namespace detail {
 namespace {
 constexpr int W = PacketCull::kRays;
 static_assert(W % 2 == 0 && W < 32, "rays go two per register, and a mask bit each");
-}  // namespace
 
 // The near slab is the smaller product, there being no NaN. Every lane is computed: skipping the lanes of
-// rays that left the node costs more in branches than it saves.
-unsigned packetBoxBaseline(const TriangleBvh::Node& node, const double* o, const double* inv, double* entry) {
+// rays that left the node costs more in branches than it saves. (Internal, so that the children's test
+// inlines it: the library is position independent, and its exported functions could be interposed.)
+inline unsigned boxLanes(const TriangleBvh::Node& node, const double* o, const double* inv, double* entry) {
   unsigned mask = 0;
 #if defined(__SSE2__)
+  const __m128d lo[3] = {_mm_set1_pd(node.lo[0]), _mm_set1_pd(node.lo[1]), _mm_set1_pd(node.lo[2])};
+  const __m128d hi[3] = {_mm_set1_pd(node.hi[0]), _mm_set1_pd(node.hi[1]), _mm_set1_pd(node.hi[2])};
   for (int h = 0; h < W; h += 2) {
     __m128d t0 = _mm_setzero_pd(), t1 = _mm_set1_pd(std::numeric_limits<double>::infinity());
     for (int k = 0; k < 3; ++k) {
       const __m128d ok = _mm_load_pd(o + k * W + h), ik = _mm_load_pd(inv + k * W + h);
-      const __m128d a = _mm_mul_pd(_mm_sub_pd(_mm_set1_pd(node.lo[k]), ok), ik);
-      const __m128d b = _mm_mul_pd(_mm_sub_pd(_mm_set1_pd(node.hi[k]), ok), ik);
+      const __m128d a = _mm_mul_pd(_mm_sub_pd(lo[k], ok), ik), b = _mm_mul_pd(_mm_sub_pd(hi[k], ok), ik);
       t0 = _mm_max_pd(_mm_min_pd(a, b), t0);
       t1 = _mm_min_pd(_mm_max_pd(a, b), t1);
     }
@@ -47,10 +48,16 @@ unsigned packetBoxBaseline(const TriangleBvh::Node& node, const double* o, const
   return mask;
 }
 
+}  // namespace
+
+unsigned packetBoxBaseline(const TriangleBvh::Node& node, const double* o, const double* inv, double* entry) {
+  return boxLanes(node, o, inv, entry);
+}
+
 void packetChildrenBaseline(const TriangleBvh::Node* const child[2], const double* o, const double* inv,
                             const PacketCull& cull, unsigned active, double* const entry[2], unsigned mask[2]) {
   for (int c = 0; c < 2; ++c)
-    mask[c] = packetKept(cull, *child[c], entry[c], packetBoxBaseline(*child[c], o, inv, entry[c]) & active);
+    mask[c] = packetKept(cull, *child[c], entry[c], boxLanes(*child[c], o, inv, entry[c]) & active);
 }
 
 unsigned packetTriangleBaseline(const double* a, const double* b, const double* c, const double* o, const double* d,
