@@ -12,11 +12,17 @@
 namespace clod_haptics {
 namespace {
 
-#ifndef CLOD_CELL_FACTOR
-#define CLOD_CELL_FACTOR 2.0
-#endif
-constexpr double kCellFactor = CLOD_CELL_FACTOR;  // cell side in pointer radii
+using detail::ReallocArray;
+using detail::roundDown;
+using Entry = CellGrid::Entry;
+
+constexpr double kCellFactor = 2.0;  // cell side in pointer radii, unless coarser cells pay (cellFactor)
 constexpr std::int64_t kMaxDim = (1 << CellGrid::kBits) - 1;
+constexpr double kSqrt3 = 1.7320508075688772;
+constexpr double kHalfDiagonal = 0.8660254037844386;  // half the diagonal of a unit cube
+// Rounding of a stored direction: each component within 0.5 / 127 of u, so |u - stored| <= sqrt(3) / 254
+// and the bound errs by at most that times |p - centre| <= h sqrt(3) / 2.
+constexpr double kDirectionError = kSqrt3 / 254.0;
 
 std::uint64_t mix(std::uint64_t k) {
   k ^= k >> 33;
@@ -26,7 +32,115 @@ std::uint64_t mix(std::uint64_t k) {
   return k ^ (k >> 33);
 }
 
-using detail::roundDown;
+/** Number of cells of the grid's box (in double: it may exceed what the dense index can hold). */
+double cellsOfBox(const std::int64_t dims[3]) {
+  return static_cast<double>(dims[0]) * static_cast<double>(dims[1]) * static_cast<double>(dims[2]);
+}
+
+std::int8_t quantise(double u) { return static_cast<std::int8_t>(std::lround(std::clamp(u, -1.0, 1.0) * 127.0)); }
+
+// ---- Cell size and placement ----
+
+/** The mesh's figures the cells are sized by. */
+struct MeshFigures {
+  Eigen::AlignedBox3d bounds;
+  double magnitude;  // largest coordinate magnitude of the bounds
+  double pad;        // rounding slack relative to the coordinates
+  double area;       // total area
+  double edge;       // mean edge length
+};
+
+MeshFigures measure(const TriangleMesh& mesh) {
+  MeshFigures f;
+  f.bounds = mesh.bounds();
+  f.magnitude = std::max(f.bounds.min().cwiseAbs().maxCoeff(), f.bounds.max().cwiseAbs().maxCoeff());
+  f.pad = 1e-12 * std::max(f.magnitude, f.bounds.diagonal().norm());
+  f.area = 0.0;
+  for (std::size_t t = 0; t < mesh.size(); ++t)
+    f.area += 0.5 * (mesh.vertex(t, 1) - mesh.vertex(t, 0)).cross(mesh.vertex(t, 2) - mesh.vertex(t, 0)).norm();
+  double edges = 0.0;
+  for (std::size_t t = 0; t < mesh.size(); ++t)
+    for (int k = 0; k < 3; ++k) edges += (mesh.vertex(t, (k + 1) % 3) - mesh.vertex(t, k)).norm();
+  f.edge = edges / (3.0 * static_cast<double>(mesh.size()));
+  return f;
+}
+
+/**
+ * Estimated candidates of cells of side h keeping the triangles within reach of their centres. Each triangle
+ * lands in the cells within reach: a slab around its area, or for triangles smaller than a cell, the ball of that
+ * reach around it (about half its bounding cube, which spans about (edge + 2 reach) / h cells along each axis).
+ */
+double estimatedCandidates(const MeshFigures& f, std::size_t triangles, double reach, double h) {
+  const double slab = (2.0 * reach * f.area) / (h * h * h);
+  const double span = (f.edge + 2.0 * reach) / h;
+  return std::max(slab, 0.6 * span * span * span * static_cast<double>(triangles));
+}
+
+/**
+ * Cell side in pointer radii. Larger cells mean a smaller index (the part every query reads, kept in cache) but
+ * more candidates per cell. About pi reach^2 n / area triangles lie within reach of a surface cell's centre; up to
+ * about 13 of them the larger cells answer faster, beyond that slower, so the side is 3 r or 2.5 r when that
+ * estimate stays under 13, else 2 r.
+ */
+double cellFactor(const MeshFigures& f, std::size_t triangles, double radius) {
+  for (double factor : {3.0, 2.5}) {
+    const double r = radius * (1.0 + kHalfDiagonal * factor);
+    if (3.141592653589793 * r * r * static_cast<double>(triangles) <= 13.0 * f.area) return factor;
+  }
+  return kCellFactor;
+}
+
+/** The cell side, grown until the grid has at most kMaxDim - 4 cells per axis and about maxEntries candidates. */
+double cellSide(const MeshFigures& f, std::size_t triangles, double radius, double maxEntries) {
+  double h = cellFactor(f, triangles, radius) * radius;
+  const double extent = f.bounds.sizes().maxCoeff() + 2.0 * (radius + 2.0 * h);
+  h = std::max(h, extent / static_cast<double>(kMaxDim - 4));
+  for (int guard = 0; guard < 64; ++guard) {
+    if (estimatedCandidates(f, triangles, radius + kHalfDiagonal * h, h) <= maxEntries) break;
+    h *= 1.25;
+  }
+  return h;
+}
+
+/** Where the cells lie, and how far from a cell's centre its candidates reach. */
+struct Layout {
+  double h;      // cell side
+  double inv;    // 1 / h
+  double reach;  // radius + half diagonal + pad: the candidates of a cell are within it of the centre
+  Vec3 origin;   // lower corner of cell (0, 0, 0)
+  std::int64_t dims[3];
+
+  Vec3 centre(std::int64_t x, std::int64_t y, std::int64_t z) const {
+    return origin +
+           (Vec3(static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)) + Vec3::Constant(0.5)) * h;
+  }
+};
+
+/** The cells of side h around the mesh, with a margin of reach + h on every side. */
+Layout placeCells(const MeshFigures& f, double radius, double h) {
+  Layout g;
+  g.h = h;
+  g.inv = 1.0 / h;
+  g.reach = radius + kHalfDiagonal * h + f.pad;
+  g.origin = f.bounds.min() - Vec3::Constant(g.reach + h);
+  for (int k = 0; k < 3; ++k)
+    g.dims[k] = std::min<std::int64_t>(
+        kMaxDim, static_cast<std::int64_t>(std::ceil((f.bounds.sizes()[k] + 2 * (g.reach + h)) * g.inv)) + 1);
+  return g;
+}
+
+/** The cells (unclamped: the floors of the coordinates) that triangle t's box grown by reach spans. */
+void spannedCells(const TriangleMesh& mesh, const Layout& g, std::size_t t, std::int64_t l[3], std::int64_t u[3]) {
+  const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
+  const Vec3 lo = a.cwiseMin(b).cwiseMin(c) - Vec3::Constant(g.reach);
+  const Vec3 hi = a.cwiseMax(b).cwiseMax(c) + Vec3::Constant(g.reach);
+  for (int k = 0; k < 3; ++k) {
+    l[k] = static_cast<std::int64_t>(std::floor((lo[k] - g.origin[k]) * g.inv));
+    u[k] = static_cast<std::int64_t>(std::floor((hi[k] - g.origin[k]) * g.inv));
+  }
+}
+
+// ---- Candidates ----
 
 struct Candidate {
   std::uint64_t key;
@@ -35,16 +149,301 @@ struct Candidate {
   std::int8_t direction[3];
 };
 
-std::int8_t quantise(double u) { return static_cast<std::int8_t>(std::lround(std::clamp(u, -1.0, 1.0) * 127.0)); }
+/** The order of the entries: by cell, then by distance, then by triangle. */
+struct ByCellThenDistance {
+  bool operator()(const Candidate& p, const Candidate& q) const {
+    if (p.key != q.key) return p.key < q.key;
+    if (p.distance != q.distance) return p.distance < q.distance;
+    return p.triangle < q.triangle;
+  }
+};
 
-// Rounding of a stored direction: each component within 0.5 / 127 of u, so |u - stored| <= sqrt(3) / 254
-// and the bound errs by at most that times |p - centre| <= h sqrt(3) / 2.
-constexpr double kDirectionError = 1.7320508075688772 / 254.0;
-constexpr double kHalfDiagonal = 0.8660254037844386;
+std::uint64_t cellKey(std::int64_t x, std::int64_t y, std::int64_t z) {
+  return static_cast<std::uint64_t>(x) | static_cast<std::uint64_t>(y) << CellGrid::kBits |
+         static_cast<std::uint64_t>(z) << (2 * CellGrid::kBits);
+}
 
-// Range of n . x over the part of triangle (a, b, c) (relative to a cell's centre) inside the region
-// |x|_inf <= half, |x|_1 <= diamond (Sutherland-Hodgman against those 6 + 8 planes); false when nothing
-// of the triangle is inside.
+/** Lists, for triangles, the cells whose centre is within reach of them (an exact test: no candidate is missed). */
+class CandidateCollector {
+ public:
+  CandidateCollector(const TriangleMesh& mesh, const Layout& g, const MeshFigures& f)
+      : mesh_(mesh),
+        g_(g),
+        planeLimit_(g.reach + 1e-9 * g.h + f.pad),  // slack for the rounding of the plane distance
+        tiny_(std::max(1e-9 * g.h, 4e-9 * f.magnitude)) {}
+
+  /** Appends the candidates of the triangles [begin, end) in the cells of z in [zBegin, zEnd). */
+  void collect(const std::uint32_t* begin, const std::uint32_t* end, std::int64_t zBegin, std::int64_t zEnd,
+               ReallocArray<Candidate>& out) const {
+    for (const std::uint32_t* it = begin; it != end; ++it) collectTriangle(*it, zBegin, zEnd, out);
+  }
+
+ private:
+  void collectTriangle(std::size_t t, std::int64_t zBegin, std::int64_t zEnd, ReallocArray<Candidate>& out) const {
+    const Vec3 &a = mesh_.vertex(t, 0), &b = mesh_.vertex(t, 1), &c = mesh_.vertex(t, 2);
+    const Vec3& n = mesh_.normals[t];
+    const bool planar = !n.isZero(0.0);
+    std::int64_t l[3], u[3];
+    spannedCells(mesh_, g_, t, l, u);
+    for (int k = 0; k < 3; ++k) {
+      l[k] = std::max<std::int64_t>(0, l[k]);
+      u[k] = std::min<std::int64_t>(g_.dims[k] - 1, u[k]);
+    }
+    l[2] = std::max(l[2], zBegin);
+    u[2] = std::min(u[2], zEnd - 1);
+    if (l[2] > u[2]) return;
+    for (std::int64_t x = l[0]; x <= u[0]; ++x)
+      for (std::int64_t y = l[1]; y <= u[1]; ++y)
+        for (std::int64_t z = l[2]; z <= u[2]; ++z) {
+          const Vec3 centre = g_.centre(x, y, z);
+          // The distance to the plane is a lower bound of the distance to the triangle: most cells of
+          // the box are rejected by it before the closest-point computation.
+          if (planar && std::abs(n.dot(centre - a)) > planeLimit_) continue;
+          const Vec3 toCentre = centre - closestPointOnTriangle(centre, a, b, c);
+          const double d = toCentre.norm();
+          if (d <= g_.reach) out.push_back(candidate(cellKey(x, y, z), static_cast<std::uint32_t>(t), toCentre, d));
+        }
+  }
+
+  /**
+   * The supporting-plane bound needs the true direction to the centre. The closest point carries an error
+   * of a few ulps of the coordinates, so its direction is trusted only when d is far above it (the bound
+   * then errs by < 1e-7 |p - q|, inside the slack); otherwise the entry keeps the trivial bound
+   * 0 <= distance (dc = 0, u = 0): never skipped, never wrong.
+   */
+  Candidate candidate(std::uint64_t key, std::uint32_t t, const Vec3& toCentre, double d) const {
+    if (!(d > tiny_)) return {key, 0.0f, t, {0, 0, 0}};
+    const Vec3 dir = toCentre / d;
+    return {key, roundDown(d), t, {quantise(dir.x()), quantise(dir.y()), quantise(dir.z())}};
+  }
+
+  const TriangleMesh& mesh_;
+  const Layout& g_;
+  double planeLimit_;
+  double tiny_;
+};
+
+// ---- Slices of z ----
+
+/** The z range of cells that triangle t's box grown by reach spans, and how many columns of x and y. */
+void zSpan(const TriangleMesh& mesh, const Layout& g, std::size_t t, std::int64_t& l2, std::int64_t& u2,
+           double& columns) {
+  std::int64_t l[3], u[3];
+  spannedCells(mesh, g, t, l, u);
+  for (int k = 0; k < 3; ++k) {
+    l[k] = std::clamp<std::int64_t>(l[k], 0, g.dims[k] - 1);
+    u[k] = std::clamp<std::int64_t>(u[k], 0, g.dims[k] - 1);
+  }
+  l2 = l[2];
+  u2 = u[2];
+  columns = static_cast<double>((u[0] - l[0] + 1) * (u[1] - l[1] + 1));
+}
+
+/**
+ * The first layer of each of about `slices` slices of z holding equal shares of the candidates (estimated per
+ * layer of cells from the triangles' grown boxes), then dims[2].
+ */
+std::vector<std::int64_t> sliceStarts(const TriangleMesh& mesh, const Layout& g, std::int64_t slices) {
+  std::vector<std::int64_t> starts{0};
+  if (slices > 1) {
+    std::vector<double> layer(static_cast<std::size_t>(g.dims[2]) + 1, 0.0);
+    for (std::size_t t = 0; t < mesh.size(); ++t) {
+      std::int64_t l2, u2;
+      double w;
+      zSpan(mesh, g, t, l2, u2, w);
+      layer[static_cast<std::size_t>(l2)] += w;
+      layer[static_cast<std::size_t>(u2) + 1] -= w;
+    }
+    double running = 0.0, sum = 0.0;
+    for (std::int64_t z = 0; z < g.dims[2]; ++z) sum += (running += layer[static_cast<std::size_t>(z)]);
+    running = 0.0;
+    double cumulative = 0.0;
+    for (std::int64_t z = 0; z < g.dims[2]; ++z) {
+      cumulative += (running += layer[static_cast<std::size_t>(z)]);
+      if (cumulative >= sum * static_cast<double>(starts.size()) / static_cast<double>(slices) && z + 1 < g.dims[2])
+        starts.push_back(z + 1);
+    }
+  }
+  starts.push_back(g.dims[2]);
+  return starts;
+}
+
+/** Per slice, the triangles whose z range meets it (most meet one slice): slice s lists [first[s], first[s + 1]). */
+struct SliceTriangles {
+  std::vector<std::uint32_t> first;
+  std::vector<std::uint32_t> triangles;
+};
+
+SliceTriangles trianglesPerSlice(const TriangleMesh& mesh, const Layout& g, const std::vector<std::int64_t>& starts) {
+  const std::size_t count = starts.size() - 1;
+  SliceTriangles s;
+  s.first.assign(count + 1, 0);
+  if (count == 1) {
+    s.triangles.resize(mesh.size());
+    for (std::size_t t = 0; t < mesh.size(); ++t) s.triangles[t] = static_cast<std::uint32_t>(t);
+    s.first[1] = static_cast<std::uint32_t>(mesh.size());
+    return s;
+  }
+  auto slicesOf = [&](std::size_t t, std::size_t& sa, std::size_t& sb) {
+    std::int64_t l2, u2;
+    double w;
+    zSpan(mesh, g, t, l2, u2, w);
+    sa = static_cast<std::size_t>(std::upper_bound(starts.begin(), starts.end(), l2) - starts.begin()) - 1;
+    sb = static_cast<std::size_t>(std::upper_bound(starts.begin(), starts.end(), u2) - starts.begin()) - 1;
+  };
+  std::size_t sa, sb;
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
+    slicesOf(t, sa, sb);
+    for (std::size_t q = sa; q <= sb; ++q) ++s.first[q + 1];
+  }
+  for (std::size_t q = 0; q < count; ++q) s.first[q + 1] += s.first[q];
+  s.triangles.resize(s.first[count]);
+  std::vector<std::uint32_t> fill(s.first.begin(), s.first.end() - 1);
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
+    slicesOf(t, sa, sb);
+    for (std::size_t q = sa; q <= sb; ++q) s.triangles[fill[q]++] = static_cast<std::uint32_t>(t);
+  }
+  return s;
+}
+
+/** A slice's candidates, collected by two threads into two lists, each sorted. */
+struct SliceCandidates {
+  ReallocArray<Candidate> first, second;
+
+  void collect(const CandidateCollector& collector, const std::uint32_t* list, std::size_t count, std::int64_t zBegin,
+               std::int64_t zEnd) {
+    first.clear();
+    second.clear();
+    const std::size_t half = count / 2;
+    detail::runParallel(2, [&](unsigned part) {
+      auto& out = part ? second : first;
+      collector.collect(part ? list + half : list, part ? list + count : list + half, zBegin, zEnd, out);
+      std::sort(out.begin(), out.end(), ByCellThenDistance());
+    });
+  }
+  /** Visits the candidates of both lists in merged order. */
+  template <class Visit>
+  void forEachMerged(Visit&& visit) const {
+    std::size_t i = 0, j = 0;
+    while (i < first.size() || j < second.size()) {
+      if (j == second.size() || (i < first.size() && ByCellThenDistance()(first[i], second[j])))
+        visit(first[i++]);
+      else
+        visit(second[j++]);
+    }
+  }
+  std::size_t cellCount() const {
+    std::size_t cells = 0;
+    std::uint64_t last = CellGrid::kOutside;
+    forEachMerged([&](const Candidate& c) {
+      cells += c.key != last;
+      last = c.key;
+    });
+    return cells;
+  }
+};
+
+// ---- Packing the entries ----
+
+/** The 8-bit distance of an entry, rounded down (q * unit <= d, exactly as the query computes it). */
+std::uint8_t distanceCode(float distance, double unit) {
+  const double d = static_cast<double>(distance);
+  double q = std::min(255.0, std::floor(d / unit));
+  while (q > 0.0 && q * unit > d) q -= 1.0;
+  return static_cast<std::uint8_t>(q);
+}
+
+/** The key and the header position (in the entries) of every cell, in key order. */
+struct CellTables {
+  std::vector<std::uint64_t> keys;
+  std::vector<std::uint64_t> headers;
+};
+
+/**
+ * Appends cells to the entries: per cell a header (its candidate count, then in the next 4 bytes the number of
+ * distinct spheres listing them) followed by its candidates.
+ */
+class CellPacker {
+ public:
+  CellPacker(ReallocArray<Entry>& entries, std::vector<std::uint32_t> sphereOf, double distanceUnit)
+      : entries_(entries), sphereOf_(std::move(sphereOf)), unit_(distanceUnit) {}
+
+  /** Appends the cells of a slice (its cells follow those appended before in key order). */
+  void append(const SliceCandidates& slice) {
+    const std::size_t cells = slice.cellCount();
+    at_ = entries_.size();
+    entries_.resize(at_ + slice.first.size() + slice.second.size() + cells);
+    last_ = CellGrid::kOutside;
+    slice.forEachMerged([&](const Candidate& c) { add(c); });
+    closeCell();
+  }
+  CellTables tables;
+
+ private:
+  void add(const Candidate& c) {
+    if (c.key != last_) {
+      closeCell();
+      seen_.clear();
+      header_ = at_++;
+      tables.headers.push_back(header_);
+      tables.keys.push_back(c.key);
+      last_ = c.key;
+    }
+    entries_[at_++] =
+        Entry{c.triangle, distanceCode(c.distance, unit_), {c.direction[0], c.direction[1], c.direction[2]}};
+    seen_.push_back(sphereOf_[c.triangle]);
+  }
+  void closeCell() {
+    if (last_ == CellGrid::kOutside) return;
+    std::sort(seen_.begin(), seen_.end());
+    const auto spheres = static_cast<std::uint32_t>(std::unique(seen_.begin(), seen_.end()) - seen_.begin());
+    Entry& e = entries_[header_];
+    e = Entry{static_cast<std::uint32_t>(at_ - header_ - 1), 0, {0, 0, 0}};
+    std::memcpy(reinterpret_cast<unsigned char*>(&e) + 4, &spheres, sizeof spheres);
+  }
+
+  ReallocArray<Entry>& entries_;
+  const std::vector<std::uint32_t> sphereOf_;  // the first sphere listing each triangle
+  const double unit_;
+  std::vector<std::uint32_t> seen_;  // spheres of the open cell's candidates
+  std::size_t at_ = 0, header_ = 0;
+  std::uint64_t last_ = CellGrid::kOutside;
+};
+
+/**
+ * Collects, sorts and packs the candidates of every cell into entries. Candidates are collected in slices of z
+ * (keys sort by z first, so slices come in key order), each slice's two halves (two threads) sorted and merged
+ * straight onto the end of the entries: only one slice's 24-byte candidates are held beside the 8-byte entries,
+ * and both arrays grow by realloc (pages moved, not copied).
+ */
+CellTables packCells(const TriangleMesh& mesh, const ClodSphereSet& set, const MeshFigures& f, const Layout& g,
+                     double sliceCandidates, double distanceUnit, ReallocArray<Entry>& entries) {
+  const double expected = estimatedCandidates(f, mesh.size(), g.reach, g.h);
+  const std::int64_t slices =
+      std::clamp<std::int64_t>(static_cast<std::int64_t>(expected / std::max(1.0, sliceCandidates)) + 1, 1,
+                               std::min<std::int64_t>(256, g.dims[2]));
+  // Every triangle is listed by a sphere: the coverage invariant.
+  CellPacker packer(entries, firstSphereOfTriangles(set, mesh.size()), distanceUnit);
+  const std::vector<std::int64_t> starts = sliceStarts(mesh, g, slices);
+  const SliceTriangles lists = trianglesPerSlice(mesh, g, starts);
+  const CandidateCollector collector(mesh, g, f);
+  SliceCandidates candidates;
+  for (std::size_t slice = 0; slice + 1 < starts.size(); ++slice) {
+    if (starts[slice] >= starts[slice + 1]) continue;
+    candidates.collect(collector, lists.triangles.data() + lists.first[slice],
+                       lists.first[slice + 1] - lists.first[slice], starts[slice], starts[slice + 1]);
+    packer.append(candidates);
+  }
+  return std::move(packer.tables);
+}
+
+// ---- Proofs of no contact ----
+
+/**
+ * Range of n . x over the part of triangle (a, b, c) (relative to a cell's centre) inside the region
+ * |x|_inf <= half, |x|_1 <= diamond (Sutherland-Hodgman against those 6 + 8 planes); false when nothing
+ * of the triangle is inside.
+ */
 bool clippedRange(const Vec3& a, const Vec3& b, const Vec3& c, double half, double diamond, const Vec3& n, double& lo,
                   double& hi) {
   // Most candidates of a fine mesh lie wholly inside the region (no clipping) or wholly outside one
@@ -94,359 +493,138 @@ bool clippedRange(const Vec3& a, const Vec3& b, const Vec3& c, double half, doub
   return true;
 }
 
+/**
+ * Builds each cell's slab. A triangle point within radius R of a point of the cell is within h / 2 + R of the
+ * centre along each axis and within 3 h / 2 + sqrt(3) R in the L1 norm (the cell grown by a ball of radius R
+ * lies in that box and that octahedron): the candidates clipped to both span the slab.
+ */
+class SlabBuilder {
+ public:
+  SlabBuilder(const TriangleMesh& mesh, double h, double radius, double pad, double unit)
+      : mesh_(mesh),
+        half_((0.5 * h + radius) * (1.0 + 1e-9) + pad),
+        diamond_((1.5 * h + kSqrt3 * radius) * (1.0 + 1e-9) + 2.0 * pad),
+        unit_(unit) {}
+
+  /** The slab of the cell at centre along its first candidate's normal, exactly as the query uses it (8-bit m). */
+  CellGrid::CellRef slab(const Vec3& centre, const Entry* candidates, std::uint32_t count) const {
+    CellGrid::CellRef ref{};
+    ref.offset = 0;
+    ref.halfWidth = 0xffff;  // with a zero normal: no slab
+    const Vec3& n = mesh_.normals[candidates[0].triangle];
+    if (n.isZero(0.0)) return ref;
+    const std::int8_t m8[3] = {quantise(n.x()), quantise(n.y()), quantise(n.z())};
+    const Vec3 m(m8[0] / 127.0, m8[1] / 127.0, m8[2] / 127.0);
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (std::uint32_t i = 0; i < count; ++i) {
+      const std::size_t t = candidates[i].triangle;
+      double l, u;
+      if (clippedRange(mesh_.vertex(t, 0) - centre, mesh_.vertex(t, 1) - centre, mesh_.vertex(t, 2) - centre, half_,
+                       diamond_, m, l, u)) {
+        lo = std::min(lo, l);
+        hi = std::max(hi, u);
+      }
+    }
+    if (!(lo <= hi)) return ref;
+    const double mid = std::round(0.5 * (lo + hi) / unit_);
+    const double width = std::ceil(std::max(hi - mid * unit_, mid * unit_ - lo) / unit_) + 1.0;
+    if (std::abs(mid) <= 32767.0 && width <= 65535.0) {
+      for (int j = 0; j < 3; ++j) ref.normal[j] = m8[j];
+      ref.offset = static_cast<std::int16_t>(mid);
+      ref.halfWidth = static_cast<std::uint16_t>(width);
+    }
+    return ref;
+  }
+
+ private:
+  const TriangleMesh& mesh_;
+  const double half_, diamond_, unit_;
+};
+
 }  // namespace
 
 CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle,
                    Index index, double sliceCandidates) {
-  const double maxEntries = std::max(1e6, entriesPerTriangle * static_cast<double>(mesh.size()));
   if (!(radius > 0.0) || !std::isfinite(radius))
     throw InvalidParameter("cell grid radius must be finite and > 0, got " + std::to_string(radius));
+  const MeshFigures figures = measure(mesh);
+  const double maxEntries = std::max(1e6, entriesPerTriangle * static_cast<double>(mesh.size()));
+  const Layout layout = placeCells(figures, radius, cellSide(figures, mesh.size(), radius, maxEntries));
+  const double h = layout.h;
   radius_ = radius;
-  const Eigen::AlignedBox3d bounds = mesh.bounds();
-  const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());
-  const double pad = 1e-12 * std::max(magnitude, bounds.diagonal().norm());
-
-  // Total area decides how many candidates a cell side gives; grow the side until it fits.
-  double area = 0.0;
-  for (std::size_t t = 0; t < mesh.size(); ++t)
-    area += 0.5 * (mesh.vertex(t, 1) - mesh.vertex(t, 0)).cross(mesh.vertex(t, 2) - mesh.vertex(t, 0)).norm();
-  // Cell side: larger cells mean a smaller index (the part every query reads, kept in cache) but more
-  // candidates per cell. About pi reach^2 n / area triangles lie within reach of a surface cell's
-  // centre; up to ~13 of them the larger cells measured faster (mannequin-devil, 26k triangles: median
-  // 95 -> 62 ns at 3 r), beyond that slower (refined_elephant, 89k: 94 -> 165 ns), so the side is 3 r
-  // or 2.5 r when that estimate stays under 13, else 2 r.
-  double factor = kCellFactor;
-  for (double f : {3.0, 2.5}) {
-    const double r = radius * (1.0 + 0.8660254037844386 * f);
-    if (f > factor && 3.141592653589793 * r * r * static_cast<double>(mesh.size()) <= 13.0 * area) {
-      factor = f;
-      break;
-    }
-  }
-  double h = factor * radius;
-  const double extent = bounds.sizes().maxCoeff() + 2.0 * (radius + 2.0 * h);
-  h = std::max(h, extent / static_cast<double>(kMaxDim - 4));
-  // Mean edge length: a triangle spans about (edge + 2 reach) / h cells along each axis.
-  double edges = 0.0;
-  for (std::size_t t = 0; t < mesh.size(); ++t)
-    for (int k = 0; k < 3; ++k) edges += (mesh.vertex(t, (k + 1) % 3) - mesh.vertex(t, k)).norm();
-  const double edge = edges / (3.0 * static_cast<double>(mesh.size()));
-  for (int guard = 0; guard < 64; ++guard) {
-    // Each triangle lands in the cells within radius + half diagonal: a slab around its area, or for
-    // triangles smaller than a cell, the ball of that reach around it (about half its bounding cube).
-    const double reach = radius + 0.8660254037844386 * h;
-    const double slab = (2.0 * reach * area) / (h * h * h);
-    const double span = (edge + 2.0 * reach) / h;
-    const double estimate = std::max(slab, 0.6 * span * span * span * static_cast<double>(mesh.size()));
-    if (estimate <= maxEntries) break;
-    h *= 1.25;
-  }
   cell_ = h;
-  inv_ = 1.0 / h;
+  inv_ = layout.inv;
+  origin_ = layout.origin;
+  std::copy(layout.dims, layout.dims + 3, dims_);
   // The 8-bit direction times |p - centre| <= h sqrt(3) / 2, plus float rounding (< 1e-6 h).
-  slack_ = (kDirectionError * kHalfDiagonal + 1e-6) * h + pad;
+  slack_ = (kDirectionError * kHalfDiagonal + 1e-6) * h + figures.pad;
   unit_ = h / 8192.0;
   // Rounding of the slab test's products and of the clipped points: relative 1e-9 of the cell, plus pad.
-  slabPad_ = 1e-9 * h + 4.0 * pad;
-  const double reach = radius + 0.8660254037844386 * h + pad;
-  distanceUnit_ = reach / 255.0;
-  origin_ = bounds.min() - Vec3::Constant(reach + h);
-  for (int k = 0; k < 3; ++k)
-    dims_[k] = std::min<std::int64_t>(kMaxDim, static_cast<std::int64_t>(std::ceil((bounds.sizes()[k] + 2 * (reach + h)) * inv_)) + 1);
+  slabPad_ = 1e-9 * h + 4.0 * figures.pad;
+  distanceUnit_ = layout.reach / 255.0;
 
-  const double tiny = std::max(1e-9 * h, 4e-9 * magnitude);
-  // Candidates of a range of triangles; two threads each fill their own list.
-  auto collect = [&](const std::uint32_t* begin, const std::uint32_t* end, std::int64_t zBegin, std::int64_t zEnd,
-                     detail::ReallocArray<Candidate>& candidates) {
-    for (const std::uint32_t* it = begin; it != end; ++it) {
-      const std::size_t t = *it;
-      const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
-      const Vec3& n = mesh.normals[t];
-      const bool planar = !n.isZero(0.0);
-      const double planeLimit = reach + 1e-9 * h + pad;  // slack for the rounding of the plane distance
-      const Vec3 lo = a.cwiseMin(b).cwiseMin(c) - Vec3::Constant(reach);
-      const Vec3 hi = a.cwiseMax(b).cwiseMax(c) + Vec3::Constant(reach);
-      std::int64_t l[3], u[3];
-      for (int k = 0; k < 3; ++k) {
-        l[k] = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor((lo[k] - origin_[k]) * inv_)));
-        u[k] = std::min<std::int64_t>(dims_[k] - 1, static_cast<std::int64_t>(std::floor((hi[k] - origin_[k]) * inv_)));
-      }
-      l[2] = std::max(l[2], zBegin);
-      u[2] = std::min(u[2], zEnd - 1);
-      if (l[2] > u[2]) continue;
-      for (std::int64_t x = l[0]; x <= u[0]; ++x)
-        for (std::int64_t y = l[1]; y <= u[1]; ++y)
-          for (std::int64_t z = l[2]; z <= u[2]; ++z) {
-            const Vec3 centre = origin_ + (Vec3(static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)) +
-                                           Vec3::Constant(0.5)) * h;
-            // The distance to the plane is a lower bound of the distance to the triangle: most cells of
-            // the box are rejected by it before the closest-point computation.
-            if (planar && std::abs(n.dot(centre - a)) > planeLimit) continue;
-            const Vec3 toCentre = centre - closestPointOnTriangle(centre, a, b, c);
-            const double d = toCentre.norm();
-            if (d <= reach) {
-              const std::uint64_t key = static_cast<std::uint64_t>(x) | static_cast<std::uint64_t>(y) << kBits |
-                                        static_cast<std::uint64_t>(z) << (2 * kBits);
-              // The supporting-plane bound needs the true direction to the centre. The closest point
-              // carries an error of a few ulps of the coordinates, so its direction is trusted only when
-              // d is far above it (the bound then errs by < 1e-7 |p - q|, inside the slack); otherwise the
-              // entry keeps the trivial bound 0 <= distance (dc = 0, u = 0): never skipped, never wrong.
-              if (d > tiny) {
-                const Vec3 dir = toCentre / d;
-                candidates.push_back({key, roundDown(d), static_cast<std::uint32_t>(t),
-                                      {quantise(dir.x()), quantise(dir.y()), quantise(dir.z())}});
-              } else {
-                candidates.push_back({key, 0.0f, static_cast<std::uint32_t>(t), {0, 0, 0}});
-              }
-            }
-          }
-    }
-  };
-  auto order = [](const Candidate& p, const Candidate& q) {
-    if (p.key != q.key) return p.key < q.key;
-    if (p.distance != q.distance) return p.distance < q.distance;
-    return p.triangle < q.triangle;
-  };
-  // The first sphere listing each triangle (every triangle is listed: the coverage invariant).
-  const std::vector<std::uint32_t> sphereOf = firstSphereOfTriangles(set, mesh.size());
-
-  // Candidates are collected in slices of z (keys sort by z first, so slices come in key order), each
-  // slice's two halves (two threads) sorted and merged straight onto the end of the entries: only one
-  // slice's 24-byte candidates are held beside the 8-byte entries, and both arrays grow by realloc
-  // (pages moved, not copied). Slices hold about equal shares of the candidates, estimated per layer
-  // of cells from the triangles' boxes grown by reach.
-  double expected = 0.0;
-  {
-    const double slab = (2.0 * reach * area) / (h * h * h);
-    const double span = (edge + 2.0 * reach) / h;
-    expected = std::max(slab, 0.6 * span * span * span * static_cast<double>(mesh.size()));
-  }
-  const std::int64_t slices = std::clamp<std::int64_t>(
-      static_cast<std::int64_t>(expected / std::max(1.0, sliceCandidates)) + 1, 1, std::min<std::int64_t>(256, dims_[2]));
-  // The z range of cells each triangle's box (grown by reach) spans.
-  auto zRange = [&](std::size_t t, std::int64_t& l2, std::int64_t& u2, double& columns) {
-    const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
-    const Vec3 lo = a.cwiseMin(b).cwiseMin(c) - Vec3::Constant(reach);
-    const Vec3 hi = a.cwiseMax(b).cwiseMax(c) + Vec3::Constant(reach);
-    std::int64_t l[3], u[3];
-    for (int k = 0; k < 3; ++k) {
-      l[k] = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((lo[k] - origin_[k]) * inv_)), 0, dims_[k] - 1);
-      u[k] = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((hi[k] - origin_[k]) * inv_)), 0, dims_[k] - 1);
-    }
-    l2 = l[2];
-    u2 = u[2];
-    columns = static_cast<double>((u[0] - l[0] + 1) * (u[1] - l[1] + 1));
-  };
-  std::vector<std::int64_t> sliceStart{0};
-  if (slices > 1) {
-    std::vector<double> layer(static_cast<std::size_t>(dims_[2]) + 1, 0.0);
-    for (std::size_t t = 0; t < mesh.size(); ++t) {
-      std::int64_t l2, u2;
-      double w;
-      zRange(t, l2, u2, w);
-      layer[static_cast<std::size_t>(l2)] += w;
-      layer[static_cast<std::size_t>(u2) + 1] -= w;
-    }
-    double running = 0.0, sum = 0.0;
-    for (std::int64_t z = 0; z < dims_[2]; ++z) sum += (running += layer[static_cast<std::size_t>(z)]);
-    running = 0.0;
-    double cumulative = 0.0;
-    for (std::int64_t z = 0; z < dims_[2]; ++z) {
-      cumulative += (running += layer[static_cast<std::size_t>(z)]);
-      if (cumulative >= sum * static_cast<double>(sliceStart.size()) / static_cast<double>(slices) && z + 1 < dims_[2])
-        sliceStart.push_back(z + 1);
-    }
-  }
-  sliceStart.push_back(dims_[2]);
-  // Per slice, the triangles whose z range meets it (most triangles meet one slice).
-  const std::size_t sliceCount = sliceStart.size() - 1;
-  std::vector<std::uint32_t> sliceFirst(sliceCount + 1, 0), sliceTriangles;
-  {
-    auto slicesOf = [&](std::size_t t, std::size_t& sa, std::size_t& sb) {
-      std::int64_t l2, u2;
-      double w;
-      zRange(t, l2, u2, w);
-      sa = static_cast<std::size_t>(std::upper_bound(sliceStart.begin(), sliceStart.end(), l2) - sliceStart.begin()) - 1;
-      sb = static_cast<std::size_t>(std::upper_bound(sliceStart.begin(), sliceStart.end(), u2) - sliceStart.begin()) - 1;
-    };
-    std::size_t sa, sb;
-    if (sliceCount == 1) {
-      sliceTriangles.resize(mesh.size());
-      for (std::size_t t = 0; t < mesh.size(); ++t) sliceTriangles[t] = static_cast<std::uint32_t>(t);
-      sliceFirst[1] = static_cast<std::uint32_t>(mesh.size());
-    } else {
-      for (std::size_t t = 0; t < mesh.size(); ++t) {
-        slicesOf(t, sa, sb);
-        for (std::size_t q = sa; q <= sb; ++q) ++sliceFirst[q + 1];
-      }
-      for (std::size_t q = 0; q < sliceCount; ++q) sliceFirst[q + 1] += sliceFirst[q];
-      sliceTriangles.resize(sliceFirst[sliceCount]);
-      std::vector<std::uint32_t> fill(sliceFirst.begin(), sliceFirst.end() - 1);
-      for (std::size_t t = 0; t < mesh.size(); ++t) {
-        slicesOf(t, sa, sb);
-        for (std::size_t q = sa; q <= sb; ++q) sliceTriangles[fill[q]++] = static_cast<std::uint32_t>(t);
-      }
-    }
-  }
-  std::vector<std::uint64_t> headers;  // per cell: its header's position in the entries
-  std::vector<std::uint64_t> keys;
-  std::size_t cells = 0;
-  detail::ReallocArray<Candidate> first, second;
-  std::vector<std::uint32_t> seen;
-  for (std::size_t slice = 0; slice < sliceCount; ++slice) {
-    const std::int64_t zBegin = sliceStart[slice], zEnd = sliceStart[slice + 1];
-    if (zBegin >= zEnd) continue;
-    first.clear();
-    second.clear();
-    const std::uint32_t* list = sliceTriangles.data() + sliceFirst[slice];
-    const std::size_t count = sliceFirst[slice + 1] - sliceFirst[slice], half = count / 2;
-    detail::runParallel(2, [&](unsigned part) {
-      auto& out = part ? second : first;
-      collect(part ? list + half : list, part ? list + count : list + half, zBegin, zEnd, out);
-      std::sort(out.begin(), out.end(), order);
-    });
-    // Visits the candidates of both halves in merged order.
-    auto merged = [&](auto&& visit) {
-      std::size_t i = 0, j = 0;
-      while (i < first.size() || j < second.size()) {
-        if (j == second.size() || (i < first.size() && order(first[i], second[j])))
-          visit(first[i++]);
-        else
-          visit(second[j++]);
-      }
-    };
-    std::size_t sliceCells = 0;
-    {
-      std::uint64_t last = kOutside;
-      merged([&](const Candidate& c) {
-        sliceCells += c.key != last;
-        last = c.key;
-      });
-    }
-    // Entries: per cell a header, then its candidates.
-    std::size_t at = entries_.size(), header = 0;
-    entries_.resize(at + first.size() + second.size() + sliceCells);
-    std::uint64_t last = kOutside;
-    auto close = [&]() {
-      if (last == kOutside) return;
-      std::sort(seen.begin(), seen.end());
-      const auto spheres = static_cast<std::uint32_t>(std::unique(seen.begin(), seen.end()) - seen.begin());
-      Entry& e = entries_[header];
-      e = Entry{static_cast<std::uint32_t>(at - header - 1), 0, {0, 0, 0}};
-      std::memcpy(reinterpret_cast<unsigned char*>(&e) + 4, &spheres, sizeof spheres);
-    };
-    merged([&](const Candidate& c) {
-      if (c.key != last) {
-        close();
-        seen.clear();
-        header = at++;
-        headers.push_back(header);
-        keys.push_back(c.key);
-        last = c.key;
-      }
-      // The distance in 8 bits, rounded down (q * unit <= d, exactly as the query computes it).
-      double q = std::min(255.0, std::floor(static_cast<double>(c.distance) / distanceUnit_));
-      while (q > 0.0 && q * distanceUnit_ > static_cast<double>(c.distance)) q -= 1.0;
-      entries_[at++] = Entry{c.triangle, static_cast<std::uint8_t>(q), {c.direction[0], c.direction[1], c.direction[2]}};
-      seen.push_back(sphereOf[c.triangle]);
-    });
-    close();
-    cells += sliceCells;
-  }
-  first = detail::ReallocArray<Candidate>();
-  second = detail::ReallocArray<Candidate>();
-  std::vector<std::uint32_t>().swap(sliceTriangles);
+  const CellTables tables = packCells(mesh, set, figures, layout, sliceCandidates, distanceUnit_, entries_);
   entries_.shrink();
-  cellCount_ = cells;
+  cellCount_ = tables.keys.size();
+  std::vector<CellRef> refs(cellCount_);
+  const SlabBuilder slabs(mesh, h, radius, figures.pad, unit_);
+  auto fill = [&](std::size_t begin, std::size_t end) {
+    for (std::size_t k = begin; k < end; ++k) {
+      const Entry* header = entries_.data() + tables.headers[k];
+      refs[k] = slabs.slab(centreOf(tables.keys[k]), header + 1, header->triangle);
+    }
+  };
+  detail::runParallel(2, [&](unsigned part) { part ? fill(cellCount_ / 2, cellCount_) : fill(0, cellCount_ / 2); });
 
-  // Per cell, the index entry: the slab. A triangle point within radius R of a point of the cell is
-  // within h / 2 + R of the centre along each axis and within 3 h / 2 + sqrt(3) R in the L1 norm (the
-  // cell grown by a ball of radius R lies in that box and that octahedron): the candidates clipped to
-  // both span the slab.
-  std::vector<CellRef> refs(cells);
-  {
-    const double half = (0.5 * h + radius) * (1.0 + 1e-9) + pad;
-    const double diamond = (1.5 * h + 1.7320508075688772 * radius) * (1.0 + 1e-9) + 2.0 * pad;
-    auto fill = [&](std::size_t begin, std::size_t end) {
-      for (std::size_t k = begin; k < end; ++k) {
-        const Vec3 centre = centreOf(keys[k]);
-        CellRef ref{};
-        const Entry* head = entries_.data() + headers[k];
-        const Cell c{head + 1, head->triangle, 0};
-        // The slab along the first candidate's normal, exactly as the query will use it (the 8-bit m).
-        ref.offset = 0;
-        ref.halfWidth = 0xffff;
-        const Vec3& n = mesh.normals[c.entries[0].triangle];
-        if (!n.isZero(0.0)) {
-          const std::int8_t m8[3] = {quantise(n.x()), quantise(n.y()), quantise(n.z())};
-          const Vec3 m(m8[0] / 127.0, m8[1] / 127.0, m8[2] / 127.0);
-          double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-          for (std::uint32_t i = 0; i < c.count; ++i) {
-            const std::size_t t = c.entries[i].triangle;
-            double l, u;
-            if (clippedRange(mesh.vertex(t, 0) - centre, mesh.vertex(t, 1) - centre, mesh.vertex(t, 2) - centre, half,
-                             diamond, m, l, u)) {
-              lo = std::min(lo, l);
-              hi = std::max(hi, u);
-            }
-          }
-          if (lo <= hi) {
-            const double mid = std::round(0.5 * (lo + hi) / unit_);
-            const double width = std::ceil(std::max(hi - mid * unit_, mid * unit_ - lo) / unit_) + 1.0;
-            if (std::abs(mid) <= 32767.0 && width <= 65535.0) {
-              for (int j = 0; j < 3; ++j) ref.normal[j] = m8[j];
-              ref.offset = static_cast<std::int16_t>(mid);
-              ref.halfWidth = static_cast<std::uint16_t>(width);
-            }
-          }
-        }
-        refs[k] = ref;
-      }
-    };
-    detail::runParallel(2, [&](unsigned part) { part ? fill(cells / 2, cells) : fill(0, cells / 2); });
-  }
+  if (useDenseIndex(index, mesh.size()))
+    buildDenseIndex(tables.keys, tables.headers, refs);
+  else
+    buildHashedIndex(tables.keys, tables.headers, refs);
+}
 
-  // Dense index when its bits are small (or forced), else a hash table.
-  const double total = static_cast<double>(dims_[0]) * static_cast<double>(dims_[1]) * static_cast<double>(dims_[2]);
-  const double denseBytes = total / 64.0 * sizeof(Word) + 12.0 * static_cast<double>(cells);
-  const double budget = std::max(4.0 * 1024 * 1024, 16.0 * static_cast<double>(mesh.size()));
+bool CellGrid::useDenseIndex(Index index, std::size_t triangles) const {
+  const double total = cellsOfBox(dims_);
+  const double denseBytes = total / 64.0 * sizeof(Word) + 12.0 * static_cast<double>(cellCount_);
+  const double budget = std::max(4.0 * 1024 * 1024, 16.0 * static_cast<double>(triangles));
   const bool fits = entries_.size() < (1ull << 32) && total < 17179869184.0;  // 2^34 cells
-  const bool dense = fits && (index == Index::Dense || (index == Index::Auto && denseBytes <= budget));
-  const std::uint64_t m = (1ull << kBits) - 1;
-  if (dense) {
-    const auto nx = static_cast<std::uint64_t>(dims_[0]), ny = static_cast<std::uint64_t>(dims_[1]);
-    words_.assign(static_cast<std::size_t>((static_cast<std::uint64_t>(total) + 63) / 64), Word{0, 0, 0});
-    // Keys sort by z, then y, then x: the same order as the linear index, so ranks follow key order.
-    for (std::size_t k = 0; k < keys.size(); ++k) {
-      const std::uint64_t key = keys[k];
-      const std::uint64_t linear = (key & m) + nx * (((key >> kBits) & m) + ny * ((key >> (2 * kBits)) & m));
-      words_[linear >> 6].bits |= 1ull << (linear & 63);
-    }
-    std::uint32_t rank = 0;
-    for (Word& w : words_) {
-      w.rank = rank;
-      rank += static_cast<std::uint32_t>(__builtin_popcountll(w.bits));
-    }
-    refs_ = std::move(refs);
-    headers_.resize(headers.size());
-    for (std::size_t k = 0; k < headers.size(); ++k) headers_[k] = static_cast<std::uint32_t>(headers[k]);
-  } else {
-    std::size_t cap = 16;
-    while (cap < 2 * cells) cap <<= 1;
-    slots_.assign(cap, Slot{kOutside, 0, CellRef{}});
-    mask_ = cap - 1;
-    for (std::size_t k = 0; k < keys.size(); ++k) {
-      std::uint64_t slot = mix(keys[k]) & mask_;
-      while (slots_[slot].key != kOutside) slot = (slot + 1) & mask_;
-      slots_[slot] = {keys[k], headers[k], refs[k]};
-    }
+  return fits && (index == Index::Dense || (index == Index::Auto && denseBytes <= budget));
+}
+
+void CellGrid::buildDenseIndex(const std::vector<std::uint64_t>& keys, const std::vector<std::uint64_t>& headers,
+                               std::vector<CellRef>& refs) {
+  const auto total = static_cast<std::uint64_t>(cellsOfBox(dims_));
+  words_.assign(static_cast<std::size_t>((total + 63) / 64), Word{0, 0, 0});
+  // Keys sort by z, then y, then x: the same order as the linear index, so ranks follow key order.
+  for (const std::uint64_t key : keys) {
+    const std::uint64_t linear = linearOf(key);
+    words_[linear >> 6].bits |= 1ull << (linear & 63);
+  }
+  std::uint32_t rank = 0;
+  for (Word& w : words_) {
+    w.rank = rank;
+    rank += static_cast<std::uint32_t>(__builtin_popcountll(w.bits));
+  }
+  refs_ = std::move(refs);
+  headers_.resize(headers.size());
+  for (std::size_t k = 0; k < headers.size(); ++k) headers_[k] = static_cast<std::uint32_t>(headers[k]);
+}
+
+void CellGrid::buildHashedIndex(const std::vector<std::uint64_t>& keys, const std::vector<std::uint64_t>& headers,
+                                const std::vector<CellRef>& refs) {
+  std::size_t cap = 16;
+  while (cap < 2 * keys.size()) cap <<= 1;
+  slots_.assign(cap, Slot{kOutside, 0, CellRef{}});
+  mask_ = cap - 1;
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    std::uint64_t slot = mix(keys[k]) & mask_;
+    while (slots_[slot].key != kOutside) slot = (slot + 1) & mask_;
+    slots_[slot] = {keys[k], headers[k], refs[k]};
   }
 }
 
 std::size_t CellGrid::bytes() const {
-  return entries_.capacity() * sizeof(Entry) + words_.capacity() * sizeof(Word) +
-         refs_.capacity() * sizeof(CellRef) + headers_.capacity() * sizeof(std::uint32_t) +
-         slots_.capacity() * sizeof(Slot);
+  return entries_.capacity() * sizeof(Entry) + words_.capacity() * sizeof(Word) + refs_.capacity() * sizeof(CellRef) +
+         headers_.capacity() * sizeof(std::uint32_t) + slots_.capacity() * sizeof(Slot);
 }
 
 const CellGrid::CellRef* CellGrid::findHashed(std::uint64_t key) const noexcept {
