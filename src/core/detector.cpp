@@ -28,8 +28,8 @@ bool parseFastLevel(const char* text, FastLevel& level) {
 
 // The search state of one query: the current search radius shrinks as closer triangles are found.
 struct ClodDetector::Best {
-  double d2;      // squared search radius: r^2 until a contact, then the best squared distance
-  double reach;   // sqrt(d2), for sphere pruning
+  double d2;     // squared search radius: r^2 until a contact, then the best squared distance
+  double reach;  // sqrt(d2), for sphere pruning
   bool found = false;
   std::uint32_t triangle = 0;
   std::uint32_t sphere = 0;
@@ -62,6 +62,83 @@ std::uint64_t nextDetectorId() {
   static std::atomic<std::uint64_t> counter{0};
   return counter.fetch_add(1, std::memory_order_relaxed) + 1;
 }
+
+/** Per triangle, a ball around it (centroid, radius reaching its vertices plus pad), then its three corners. */
+std::vector<double> triangleRecords(const TriangleMesh& m, double pad) {
+  std::vector<double> records(kRecord * m.size());
+  for (std::size_t t = 0; t < m.size(); ++t) {
+    double* record = records.data() + kRecord * t;
+    const Vec3 c = m.centroid(t);
+    double r2 = 0.0;
+    for (int v = 0; v < 3; ++v) r2 = std::max(r2, (m.vertex(t, v) - c).squaredNorm());
+    for (int k = 0; k < 3; ++k) record[k] = c[k];
+    record[3] = std::sqrt(r2) + pad;
+    for (int v = 0; v < 3; ++v)
+      for (int k = 0; k < 3; ++k) record[4 + 3 * v + k] = m.vertex(t, v)[k];
+  }
+  return records;
+}
+
+/** The spheres as (x, y, z, radius + pad). */
+std::vector<double> paddedSpheres(const ClodSphereSet& s, double pad) {
+  std::vector<double> data(4 * s.size());
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    for (int k = 0; k < 3; ++k) data[4 * i + k] = s.centres[i][k];
+    data[4 * i + 3] = s.radii[i] + pad;
+  }
+  return data;
+}
+
+/** The boxes of the spheres' balls. */
+std::vector<Eigen::AlignedBox3d> ballBoxes(const ClodSphereSet& s) {
+  std::vector<Eigen::AlignedBox3d> boxes(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i)
+    boxes[i] =
+        Eigen::AlignedBox3d(s.centres[i] - Vec3::Constant(s.radii[i]), s.centres[i] + Vec3::Constant(s.radii[i]));
+  return boxes;
+}
+
+/** Per sphere, the box of the triangles it lists intersected with its ball's box. */
+std::vector<Eigen::AlignedBox3d> tightBoxes(const TriangleMesh& m, const ClodSphereSet& s,
+                                            const std::vector<Eigen::AlignedBox3d>& balls) {
+  std::vector<Eigen::AlignedBox3d> tight(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    tight[i].setEmpty();
+    for (const std::uint32_t* t = s.begin(i); t != s.end(i); ++t)
+      for (int v = 0; v < 3; ++v) tight[i].extend(m.vertex(*t, v));
+    tight[i] = tight[i].intersection(balls[i]);
+  }
+  return tight;
+}
+
+/**
+ * One box tree per sphere over the triangles it lists, all in nodes; order lists triangle ids in leaf order
+ * and root[i] is sphere i's root (kNone for an empty list).
+ */
+void buildTriangleTrees(const TriangleMesh& m, const ClodSphereSet& s, double pad, std::vector<BoxNode>& nodes,
+                        std::vector<std::uint32_t>& order, std::vector<std::uint32_t>& root) {
+  root.assign(s.size(), kNone);
+  order.reserve(s.triangles.size());
+  std::vector<Eigen::AlignedBox3d> boxes;
+  std::vector<std::uint32_t> localOrder;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    boxes.clear();
+    for (const std::uint32_t* t = s.begin(i); t != s.end(i); ++t) {
+      Eigen::AlignedBox3d b;
+      b.setEmpty();
+      for (int v = 0; v < 3; ++v) b.extend(m.vertex(*t, v));
+      boxes.push_back(b);
+    }
+    localOrder.clear();
+    root[i] = buildBoxTree(boxes, 4, pad, nodes, localOrder);
+    // Leaves index localOrder from 0; shift them into order and map to triangle ids.
+    const auto base = static_cast<std::uint32_t>(order.size());
+    for (std::uint32_t local : localOrder) order.push_back(s.begin(i)[local]);
+    if (root[i] == kNone) continue;
+    for (std::size_t n = root[i]; n < nodes.size(); ++n)
+      if (nodes[n].count > 0) nodes[n].first += base;
+  }
+}
 }  // namespace
 
 ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
@@ -71,73 +148,27 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   const ClodSphereSet& s = *spheres_;
   // A level built for another mesh would send the lists past the mesh's arrays: refuse it, typed.
   const std::string misfit = fitProblem(m, s);
-  if (!misfit.empty()) throw SphereSetMismatch("ClodDetector: the sphere set does not fit mesh '" + m.name + "': " + misfit);
+  if (!misfit.empty())
+    throw SphereSetMismatch("ClodDetector: the sphere set does not fit mesh '" + m.name + "': " + misfit);
   const Eigen::AlignedBox3d bounds = m.bounds();
   // Padding relative to the coordinates' magnitude: covers rounding in every bound test.
   const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());
   pad_ = 1e-12 * std::max(magnitude, bounds.diagonal().norm());
 
-  // Per-triangle records for the hierarchy and the flat list; the grid reads the mesh's own arrays
-  // (104 bytes per triangle saved), also in its hierarchy fallback.
-  if (fastLevel_ != FastLevel::Grid) triangles_.resize(kRecord * m.size());
-  for (std::size_t t = 0; t < triangles_.size() / kRecord; ++t) {
-    double* record = triangles_.data() + kRecord * t;
-    const Vec3 c = m.centroid(t);
-    double r2 = 0.0;
-    for (int v = 0; v < 3; ++v) r2 = std::max(r2, (m.vertex(t, v) - c).squaredNorm());
-    for (int k = 0; k < 3; ++k) record[k] = c[k];
-    record[3] = std::sqrt(r2) + pad_;
-    for (int v = 0; v < 3; ++v)
-      for (int k = 0; k < 3; ++k) record[4 + 3 * v + k] = m.vertex(t, v)[k];
-  }
-
-  sphereData_.resize(4 * s.size());
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    for (int k = 0; k < 3; ++k) sphereData_[4 * i + k] = s.centres[i][k];
-    sphereData_[4 * i + 3] = s.radii[i] + pad_;
-  }
-
+  // Records for the hierarchy and the flat list; the grid reads the mesh's own arrays instead, also in its
+  // hierarchy fallback.
+  if (fastLevel_ != FastLevel::Grid) triangles_ = triangleRecords(m, pad_);
+  sphereData_ = paddedSpheres(s, pad_);
   sphereOfTriangle_ = firstSphereOfTriangles(s, m.size());
   triangleIndex_ = m.triangles.data();
   vertices_ = m.vertices.data();
   normals_ = m.normals.data();
 
   if (fastLevel_ != FastLevel::Flat) {
-    std::vector<Eigen::AlignedBox3d> boxes(s.size());
-    for (std::size_t i = 0; i < s.size(); ++i)
-      boxes[i] = Eigen::AlignedBox3d(s.centres[i] - Vec3::Constant(s.radii[i]), s.centres[i] + Vec3::Constant(s.radii[i]));
-    buildBoxTree(boxes, 4, pad_, sphereNodes_, sphereOrder_);
-    std::vector<Eigen::AlignedBox3d> tight(s.size());
-    for (std::size_t i = 0; i < s.size(); ++i) {
-      tight[i].setEmpty();
-      for (const std::uint32_t* t = s.begin(i); t != s.end(i); ++t)
-        for (int v = 0; v < 3; ++v) tight[i].extend(m.vertex(*t, v));
-      tight[i] = tight[i].intersection(boxes[i]);
-    }
-    buildBoxTree(tight, 1, pad_, tightNodes_, tightOrder_);
-
-    triangleRoot_.assign(s.size(), kNone);
-    triangleOrder_.reserve(s.triangles.size());
-    std::vector<std::uint32_t> localOrder;
-    for (std::size_t i = 0; i < s.size(); ++i) {
-      boxes.clear();
-      for (const std::uint32_t* t = s.begin(i); t != s.end(i); ++t) {
-        Eigen::AlignedBox3d b;
-        b.setEmpty();
-        for (int v = 0; v < 3; ++v) b.extend(m.vertex(*t, v));
-        boxes.push_back(b);
-      }
-      localOrder.clear();
-      const std::uint32_t root = buildBoxTree(boxes, 4, pad_, triangleNodes_, localOrder);
-      // Leaves index localOrder from 0; shift them into triangleOrder_ and map to triangle ids.
-      const std::uint32_t base = static_cast<std::uint32_t>(triangleOrder_.size());
-      for (std::uint32_t local : localOrder) triangleOrder_.push_back(s.begin(i)[local]);
-      if (root != kNone) {
-        for (std::size_t nIdx = root; nIdx < triangleNodes_.size(); ++nIdx)
-          if (triangleNodes_[nIdx].count > 0) triangleNodes_[nIdx].first += base;
-      }
-      triangleRoot_[i] = root;
-    }
+    const std::vector<Eigen::AlignedBox3d> balls = ballBoxes(s);
+    buildBoxTree(balls, 4, pad_, sphereNodes_, sphereOrder_);
+    buildBoxTree(tightBoxes(m, s, balls), 1, pad_, tightNodes_, tightOrder_);
+    buildTriangleTrees(m, s, pad_, triangleNodes_, triangleOrder_, triangleRoot_);
   }
   // The grid last: its construction peak then meets only the trees kept, not their build's temporaries.
   if (fastLevel_ == FastLevel::Grid) {
@@ -312,85 +343,73 @@ void ClodDetector::forEachHitSphere(double px, double py, double pz, const doubl
   }
 }
 
-void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
-                         QueryCache* cache) const noexcept {
-  out = ContactResult{};
-  if (!validPointer(p, r)) return;
-  Best best;
-  best.d2 = r * r;
-  best.reach = r;
+inline void ClodDetector::querySpheres(const Vec3& p, double r, ContactResult& out, QueryCache* cache) const {
+  const double* sd = sphereData_.data();
+  double bestGap = std::numeric_limits<double>::infinity();
+  std::uint32_t bestSphere = kNone, hits = 0;
+  forEachHitSphere(p.x(), p.y(), p.z(), r, false, [&](std::uint32_t i) {
+    ++hits;
+    const double gap =
+        std::sqrt((p - Vec3(sd[4 * i], sd[4 * i + 1], sd[4 * i + 2])).squaredNorm()) - spheres_->radii[i];
+    if (gap < bestGap || (gap == bestGap && i < bestSphere)) {
+      bestGap = gap;
+      bestSphere = i;
+    }
+  });
+  out.spheresHit = hits;
+  if (bestSphere == kNone) return;
+  const Vec3& c = spheres_->centres[bestSphere];
+  const Vec3 v = p - c;
+  const double len = v.norm();
+  out.contact = true;
+  out.normal = len > 0.0 ? Vec3(v / len) : Vec3::UnitZ();
+  out.point = c + spheres_->radii[bestSphere] * out.normal;
+  out.distance = std::max(0.0, bestGap);
+  out.depth = r - out.distance;
+  out.sphere = static_cast<std::int32_t>(bestSphere);
+  if (cache != nullptr) cache->lastInside = false;  // spheres never say inside
+}
 
-  if (mode == DetectionMode::Spheres) {
-    // Coarsest answer: the nearest sphere surface within r.
-    const double* sd = sphereData_.data();
-    double bestGap = std::numeric_limits<double>::infinity();
-    std::uint32_t bestSphere = kNone;
-    const double reach = r;
-    forEachHitSphere(p.x(), p.y(), p.z(), reach, false, [&](std::uint32_t i) {
-      ++best.hits;
-      const double gap = std::sqrt((p - Vec3(sd[4 * i], sd[4 * i + 1], sd[4 * i + 2])).squaredNorm()) - spheres_->radii[i];
-      if (gap < bestGap || (gap == bestGap && i < bestSphere)) {
-        bestGap = gap;
-        bestSphere = i;
-      }
-    });
-    out.spheresHit = best.hits;
-    if (bestSphere == kNone) return;
-    const Vec3& c = spheres_->centres[bestSphere];
-    const Vec3 v = p - c;
-    const double len = v.norm();
-    out.contact = true;
-    out.normal = len > 0.0 ? Vec3(v / len) : Vec3::UnitZ();
-    out.point = c + spheres_->radii[bestSphere] * out.normal;
-    out.distance = std::max(0.0, bestGap);
-    out.depth = r - out.distance;
-    out.sphere = static_cast<std::int32_t>(bestSphere);
-    if (cache != nullptr) cache->lastInside = false;  // spheres never say inside
+inline void ClodDetector::search(const Vec3& p, double radius, DetectionMode mode, Best& best,
+                                 QueryCache* cache) const {
+  best.d2 = radius * radius;
+  best.reach = radius;
+  best.found = false;
+  if (!grid_.empty() && radius <= grid_.radius()) {
+    preciseGrid(p, mode, best, cache);
     return;
   }
+  const bool tree = fastLevel_ != FastLevel::Flat && !triangleRoot_.empty();
+  // best.reach by reference: the sphere search narrows as closer triangles are found.
+  forEachHitSphere(p.x(), p.y(), p.z(), best.reach, tree, [&](std::uint32_t i) {
+    ++best.hits;
+    if (tree)
+      preciseTree(i, p, mode, best);
+    else
+      preciseFlat(i, p, mode, best);
+  });
+}
 
-  // The nearest triangle within radius (the tie rule of bruteForceQuery), through the configured levels:
-  // the grid up to its radius, the hierarchy (or the flat list) beyond.
-  auto search = [&](double radius) {
-    best.d2 = radius * radius;
-    best.reach = radius;
-    best.found = false;
-    if (!grid_.empty() && radius <= grid_.radius()) {
-      preciseGrid(p, mode, best, cache);
-    } else {
-      const bool tree = fastLevel_ != FastLevel::Flat && !triangleRoot_.empty();
-      forEachHitSphere(p.x(), p.y(), p.z(), best.reach, tree, [&](std::uint32_t i) {
-        ++best.hits;
-        if (tree)
-          preciseTree(i, p, mode, best);
-        else
-          preciseFlat(i, p, mode, best);
-      });
-    }
-  };
-  search(r);
-  // Deep penetration: the stream was inside and no triangle is within r. The nearest triangle is found
-  // with a growing radius; only a centre inside the model's box can be inside a closed surface, and from
-  // there every triangle is within the box's diagonal, where the search ends.
-  const bool deep = !best.found && cache != nullptr && cache->lastInside;
-  if (deep) {
-    Eigen::AlignedBox3d box;
-    if (!tightNodes_.empty()) {  // the root bounds every triangle (float, rounded outward)
-      const BoxNode& root = tightNodes_[0];
-      box = Eigen::AlignedBox3d(Vec3(root.lo[0], root.lo[1], root.lo[2]), Vec3(root.hi[0], root.hi[1], root.hi[2]));
-    } else {
-      box = mesh_->bounds();  // the flat level keeps no tree: O(triangles), only while a push is followed
-    }
-    if (box.contains(p)) {
-      const double diagonal = box.diagonal().norm();
-      // At most about 20 rounds from a tiny radius; 2r for a usual one.
-      for (double radius = std::max(2.0 * r, diagonal * 0x1p-20);; radius *= 2.0) {
-        const double reach = std::min(radius, diagonal);
-        search(reach);
-        if (best.found || !(reach < diagonal)) break;
-      }
-    }
+void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best& best, QueryCache* cache) const {
+  Eigen::AlignedBox3d box;
+  if (!tightNodes_.empty()) {  // the root bounds every triangle (float, rounded outward)
+    const BoxNode& root = tightNodes_[0];
+    box = Eigen::AlignedBox3d(Vec3(root.lo[0], root.lo[1], root.lo[2]), Vec3(root.hi[0], root.hi[1], root.hi[2]));
+  } else {
+    box = mesh_->bounds();  // the flat level keeps no tree: O(triangles), only while a push is followed
   }
+  if (!box.contains(p)) return;
+  const double diagonal = box.diagonal().norm();
+  // At most about 20 rounds from a tiny radius; 2r for a usual one.
+  for (double radius = std::max(2.0 * r, diagonal * 0x1p-20);; radius *= 2.0) {
+    const double reach = std::min(radius, diagonal);
+    search(p, reach, mode, best, cache);
+    if (best.found || !(reach < diagonal)) break;
+  }
+}
+
+inline void ClodDetector::answer(const Vec3& p, double r, const Best& best, bool deep, ContactResult& out,
+                                 QueryCache* cache) const {
   out.spheresHit = best.hits;
   out.trianglesTested = best.tested;
   if (!best.found) {
@@ -403,10 +422,9 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
   finishContact(*mesh_, p, r, out);  // inside, signed depth, outward normal: the rule brute force shares
   if (deep && !out.inside) {
     // The nearest surface is beyond r and the centre is outside it: no contact.
-    const std::uint32_t hits = out.spheresHit, tested = out.trianglesTested;
     out = ContactResult{};
-    out.spheresHit = hits;
-    out.trianglesTested = tested;
+    out.spheresHit = best.hits;
+    out.trianglesTested = best.tested;
     cache->lastInside = false;
     return;
   }
@@ -420,6 +438,26 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
   }
 }
 
+void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
+                         QueryCache* cache) const noexcept {
+  out = ContactResult{};
+  if (!validPointer(p, r)) return;
+  if (mode == DetectionMode::Spheres) {  // coarsest answer: the nearest sphere surface within r
+    querySpheres(p, r, out, cache);
+    return;
+  }
+  // The nearest triangle within r (the tie rule of bruteForceQuery), through the configured levels: the grid
+  // up to its radius, the hierarchy (or the flat list) beyond.
+  Best best;
+  search(p, r, mode, best, cache);
+  // Deep penetration: the stream was inside and no triangle is within r. The nearest triangle is found
+  // with a growing radius; only a centre inside the model's box can be inside a closed surface, and from
+  // there every triangle is within the box's diagonal, where the search ends.
+  const bool deep = !best.found && cache != nullptr && cache->lastInside;
+  if (deep) searchDeep(p, r, mode, best, cache);
+  answer(p, r, best, deep, out, cache);
+}
+
 std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcept {
   if (!validPointer(p, r)) return 0;
   if (!grid_.empty() && r <= grid_.radius()) {
@@ -429,17 +467,15 @@ std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcep
     return grid_.cell(*ref).spheres;
   }
   std::uint32_t hits = 0;
-  const double reach = r;
   const bool tree = fastLevel_ != FastLevel::Flat && !triangleRoot_.empty();
-  forEachHitSphere(p.x(), p.y(), p.z(), reach, tree, [&](std::uint32_t) { ++hits; });
+  forEachHitSphere(p.x(), p.y(), p.z(), r, tree, [&](std::uint32_t) { ++hits; });
   return hits;
 }
 
 void ClodDetector::hitSpheres(const Vec3& p, double r, std::vector<std::uint32_t>& out) const {
   out.clear();
   if (!validPointer(p, r)) return;
-  const double reach = r;
-  forEachHitSphere(p.x(), p.y(), p.z(), reach, false, [&](std::uint32_t i) { out.push_back(i); });
+  forEachHitSphere(p.x(), p.y(), p.z(), r, false, [&](std::uint32_t i) { out.push_back(i); });
   std::sort(out.begin(), out.end());
 }
 

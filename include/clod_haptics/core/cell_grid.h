@@ -180,7 +180,7 @@ class CellGrid {
 
   /** \brief What the index keeps per non-empty cell for the proof of no contact (8 bytes). */
   struct CellRef {
-    std::int8_t normal[3];    ///< slab direction m times 127 (zero: no slab)
+    std::int8_t normal[3];  ///< slab direction m times 127 (zero: no slab)
     std::uint8_t unused;
     std::int16_t offset;      ///< slab centre along m, in units of cellSize() / 8192
     std::uint16_t halfWidth;  ///< slab half width, same units, rounded up (covers offset's rounding)
@@ -265,17 +265,18 @@ class CellGrid {
   double cell_ = 0.0;
   double inv_ = 0.0;
   double slack_ = 0.0;
-  double unit_ = 0.0;     // slab units: cell / 8192
+  double unit_ = 0.0;  // slab units: cell / 8192
   double distanceUnit_ = 0.0;
   double slabPad_ = 0.0;  // rounding of the slab test
   Vec3 origin_ = Vec3::Zero();
   std::int64_t dims_[3] = {0, 0, 0};
   std::size_t cellCount_ = 0;
-  detail::ReallocArray<Entry> entries_;  // per cell: a header (triangle = count, the next 4 bytes = spheres), then candidates
-  std::vector<Word> words_;          // dense index
-  std::vector<CellRef> refs_;         // dense index: proofs of the k-th non-empty cell (read by every query)
+  // Per cell: a header (triangle = count, the next 4 bytes = spheres), then its candidates.
+  detail::ReallocArray<Entry> entries_;
+  std::vector<Word> words_;             // dense index
+  std::vector<CellRef> refs_;           // dense index: proofs of the k-th non-empty cell (read by every query)
   std::vector<std::uint32_t> headers_;  // dense index: its header in the entries (read on contact only)
-  std::vector<Slot> slots_;          // hashed index: open addressing
+  std::vector<Slot> slots_;             // hashed index: open addressing
   std::uint64_t mask_ = 0;
 };
 

@@ -30,10 +30,10 @@ struct QueryCache {
   /// The detector that filled it, by ClodDetector::id() (never by address: a freed detector's address is
   /// reused by the next allocation, its id never is). 0: empty. Another detector ignores the entry.
   std::uint64_t owner = 0;
-  std::uint64_t key = ~0ull;          ///< last grid cell
-  const void* cell = nullptr;         ///< that cell's index entry in the grid (null: empty cell)
-  std::int32_t lastTriangle = -1;     ///< last contact triangle
-  std::uint64_t hits = 0;             ///< queries that reused the cell (statistics)
+  std::uint64_t key = ~0ull;       ///< last grid cell
+  const void* cell = nullptr;      ///< that cell's index entry in the grid (null: empty cell)
+  std::int32_t lastTriangle = -1;  ///< last contact triangle
+  std::uint64_t hits = 0;          ///< queries that reused the cell (statistics)
   /// The last answer was a contact with the centre inside: the next query follows it beyond the radius.
   /// Kept across detectors (a level swap of the same part keeps the push); an invalid query leaves it.
   bool lastInside = false;
@@ -110,6 +110,12 @@ class ClodDetector {
   void testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
   void testGridTriangle(std::uint32_t tri, const Vec3& p, DetectionMode mode, Best& best) const;
   void preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const;
+  // The stages of query(): the spheres mode; the nearest triangle within radius; the growing search of a deep
+  // centre; the answer from the search's result.
+  void querySpheres(const Vec3& p, double r, ContactResult& out, QueryCache* cache) const;
+  void search(const Vec3& p, double radius, DetectionMode mode, Best& best, QueryCache* cache) const;
+  void searchDeep(const Vec3& p, double r, DetectionMode mode, Best& best, QueryCache* cache) const;
+  void answer(const Vec3& p, double r, const Best& best, bool deep, ContactResult& out, QueryCache* cache) const;
 
   std::shared_ptr<const TriangleMesh> mesh_;
   std::shared_ptr<const ClodSphereSet> spheres_;
@@ -117,7 +123,7 @@ class ClodDetector {
   std::uint64_t id_;
   double pad_ = 0.0;  // conservative padding relative to the model's coordinates
 
-  // Flat copies for the cache: triangle corners (9 doubles each) and padded spheres (x, y, z, radius).
+  // The spheres, flat for the cache: x, y, z, radius + pad.
   std::vector<double> sphereData_;
   // Per triangle, one record of 13 doubles (two cache lines): a ball around it (centroid and padded
   // radius reaching its vertices) for a cheap reject, then its three corners. Empty for the grid level.
