@@ -31,6 +31,7 @@ struct ClodDetector::Best {
   double d2;     // squared search radius: r^2 until a contact, then the best squared distance
   double reach;  // sqrt(d2), for sphere pruning
   bool found = false;
+  bool deep = false;  // searched beyond r for a stream that was inside (searchDeep)
   std::uint32_t triangle = 0;
   std::uint32_t sphere = 0;
   Vec3 point = Vec3::Zero();
@@ -391,6 +392,7 @@ inline void ClodDetector::search(const Vec3& p, double radius, DetectionMode mod
 }
 
 void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best& best, QueryCache* cache) const {
+  best.deep = true;
   Eigen::AlignedBox3d box;
   if (!tightNodes_.empty()) {  // the root bounds every triangle (float, rounded outward)
     const BoxNode& root = tightNodes_[0];
@@ -408,7 +410,7 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
   }
 }
 
-inline void ClodDetector::answer(const Vec3& p, double r, const Best& best, bool deep, ContactResult& out,
+inline void ClodDetector::answer(const Vec3& p, double r, const Best& best, ContactResult& out,
                                  QueryCache* cache) const {
   out.spheresHit = best.hits;
   out.trianglesTested = best.tested;
@@ -420,7 +422,7 @@ inline void ClodDetector::answer(const Vec3& p, double r, const Best& best, bool
   out.distance = std::sqrt(best.d2);
   out.triangle = static_cast<std::int32_t>(best.triangle);
   finishContact(*mesh_, p, r, out);  // inside, signed depth, outward normal: the rule brute force shares
-  if (deep && !out.inside) {
+  if (best.deep && !out.inside) {
     // The nearest surface is beyond r and the centre is outside it: no contact.
     out = ContactResult{};
     out.spheresHit = best.hits;
@@ -453,9 +455,8 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
   // Deep penetration: the stream was inside and no triangle is within r. The nearest triangle is found
   // with a growing radius; only a centre inside the model's box can be inside a closed surface, and from
   // there every triangle is within the box's diagonal, where the search ends.
-  const bool deep = !best.found && cache != nullptr && cache->lastInside;
-  if (deep) searchDeep(p, r, mode, best, cache);
-  answer(p, r, best, deep, out, cache);
+  if (!best.found && cache != nullptr && cache->lastInside) searchDeep(p, r, mode, best, cache);
+  answer(p, r, best, out, cache);
 }
 
 std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcept {

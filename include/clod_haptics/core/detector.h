@@ -115,7 +115,7 @@ class ClodDetector {
   void querySpheres(const Vec3& p, double r, ContactResult& out, QueryCache* cache) const;
   void search(const Vec3& p, double radius, DetectionMode mode, Best& best, QueryCache* cache) const;
   void searchDeep(const Vec3& p, double r, DetectionMode mode, Best& best, QueryCache* cache) const;
-  void answer(const Vec3& p, double r, const Best& best, bool deep, ContactResult& out, QueryCache* cache) const;
+  void answer(const Vec3& p, double r, const Best& best, ContactResult& out, QueryCache* cache) const;
 
   std::shared_ptr<const TriangleMesh> mesh_;
   std::shared_ptr<const ClodSphereSet> spheres_;
