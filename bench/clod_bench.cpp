@@ -230,16 +230,7 @@ struct ProbeSet {
   std::vector<ContactResult> ref;
 };
 
-const char* levelName(FastLevel l) {
-  switch (l) {
-    case FastLevel::Flat:
-      return "flat";
-    case FastLevel::Grid:
-      return "grid";
-    default:
-      return "hierarchy";
-  }
-}
+const char* levelName(FastLevel l) { return toString(l); }
 
 // ---------------------------------------------------------------------------------------------
 // CSV files, opened once with their header.

@@ -3,33 +3,18 @@
 #include <cmath>
 #include <cstring>
 
+#include "enum_names.h"
+
 namespace clod_haptics {
 
-bool parseDetectionMode(const char* text, DetectionMode& mode) {
-  if (text == nullptr) return false;
-  if (std::strcmp(text, "exact") == 0) {
-    mode = DetectionMode::Exact;
-  } else if (std::strcmp(text, "paper") == 0) {
-    mode = DetectionMode::Paper;
-  } else if (std::strcmp(text, "spheres") == 0) {
-    mode = DetectionMode::Spheres;
-  } else {
-    return false;
-  }
-  return true;
-}
+namespace {
+const detail::EnumNames<DetectionMode, 3> kModeNames = {
+    {DetectionMode::Exact, "exact"}, {DetectionMode::Paper, "paper"}, {DetectionMode::Spheres, "spheres"}};
+}  // namespace
 
-const char* toString(DetectionMode mode) {
-  switch (mode) {
-    case DetectionMode::Exact:
-      return "exact";
-    case DetectionMode::Paper:
-      return "paper";
-    case DetectionMode::Spheres:
-      return "spheres";
-  }
-  return "unknown";
-}
+bool parseDetectionMode(const char* text, DetectionMode& mode) { return detail::parseName(text, kModeNames, mode); }
+
+const char* toString(DetectionMode mode) { return detail::nameOf(mode, kModeNames); }
 
 Vec3 pseudoNormal(const TriangleMesh& mesh, std::uint32_t t, const TriangleRegion& region) noexcept {
   const Vec3& n = mesh.normals[t];

@@ -9,22 +9,18 @@
 
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
+#include "enum_names.h"
 
 namespace clod_haptics {
 
-bool parseFastLevel(const char* text, FastLevel& level) {
-  if (text == nullptr) return false;
-  if (std::strcmp(text, "flat") == 0) {
-    level = FastLevel::Flat;
-  } else if (std::strcmp(text, "hierarchy") == 0) {
-    level = FastLevel::Hierarchy;
-  } else if (std::strcmp(text, "grid") == 0) {
-    level = FastLevel::Grid;
-  } else {
-    return false;
-  }
-  return true;
-}
+namespace {
+const detail::EnumNames<FastLevel, 3> kFastLevelNames = {
+    {FastLevel::Grid, "grid"}, {FastLevel::Hierarchy, "hierarchy"}, {FastLevel::Flat, "flat"}};
+}  // namespace
+
+bool parseFastLevel(const char* text, FastLevel& level) { return detail::parseName(text, kFastLevelNames, level); }
+
+const char* toString(FastLevel level) { return detail::nameOf(level, kFastLevelNames); }
 
 // The search state of one query: the current search radius shrinks as closer triangles are found.
 struct ClodDetector::Best {

@@ -6,9 +6,10 @@
 #include <filesystem>
 #include <vector>
 
-#include "binary_io.h"
 #include "clod_haptics/core/atomic_file.h"
 #include "clod_haptics/core/errors.h"
+#include "binary_io.h"
+#include "enum_names.h"
 
 namespace clod_haptics {
 
@@ -163,15 +164,9 @@ std::string defaultSphereCacheDirectory() {
 }
 
 const char* toString(CacheSource source) {
-  switch (source) {
-    case CacheSource::Hit:
-      return "hit";
-    case CacheSource::Built:
-      return "built";
-    case CacheSource::Rebuilt:
-      return "rebuilt";
-  }
-  return "?";
+  static const detail::EnumNames<CacheSource, 3> kNames = {
+      {CacheSource::Hit, "hit"}, {CacheSource::Built, "built"}, {CacheSource::Rebuilt, "rebuilt"}};
+  return detail::nameOf(source, kNames);
 }
 
 DiskCache::DiskCache(std::string directory)

@@ -41,8 +41,8 @@ std_msgs::Header DetectorDisplay::objectHeader(std::size_t object) const {
   return header;
 }
 
-void DetectorDisplay::update(const std::vector<std::shared_ptr<const ClodDetector>>& levels,
-                             const DisplayFrame& frame, visualization_msgs::MarkerArray& out) {
+void DetectorDisplay::update(const std::vector<std::shared_ptr<const ClodDetector>>& levels, const DisplayFrame& frame,
+                             visualization_msgs::MarkerArray& out) {
   const bool everything = everything_;
   const bool meshes = everything || meshSwitched_;
   const bool spheres = everything || spheresSwitched_;
@@ -67,8 +67,9 @@ void DetectorDisplay::update(const std::vector<std::shared_ptr<const ClodDetecto
     return;
   }
   const bool touching = !frame.contacts.empty();
-  out.markers.push_back(pointerMarker(frame.pointer, frame.radius, header,
-                                      touching ? makeColor(1.0f, 0.2f, 0.2f, 0.9f) : makeColor(0.1f, 0.9f, 0.2f, 0.9f)));
+  out.markers.push_back(
+      pointerMarker(frame.pointer, frame.radius, header,
+                    touching ? makeColor(1.0f, 0.2f, 0.2f, 0.9f) : makeColor(0.1f, 0.9f, 0.2f, 0.9f)));
 }
 
 void DetectorDisplay::appendMesh(std::size_t i, visualization_msgs::MarkerArray& out) const {

@@ -2,10 +2,9 @@
 #include "clod_haptics/ros/haptic_detector.h"
 
 #include <geometry_msgs/WrenchStamped.h>
-#include <tf2/exceptions.h>
-
 #include <pthread.h>
 #include <sched.h>
+#include <tf2/exceptions.h>
 
 #include <algorithm>
 #include <chrono>
@@ -103,8 +102,10 @@ void HapticDetector::readParameters() {
   if (policy == "all" || policy == "latest") {
     p.posePolicy = policy == "all" ? PosePolicy::All : PosePolicy::Latest;
   } else {
-    throw InvalidParameter("~pose_policy must be all (answer every pose) or latest (skip a pose a newer one waits "
-                           "behind), not '" + policy + "'");
+    throw InvalidParameter(
+        "~pose_policy must be all (answer every pose) or latest (skip a pose a newer one waits "
+        "behind), not '" +
+        policy + "'");
   }
   if (!parseFastLevel(fast.c_str(), p.fastLevel)) {
     throw InvalidParameter("~fast_level must be grid, hierarchy or flat, not '" + fast + "'");
@@ -155,9 +156,8 @@ void HapticDetector::loadObjects() {
   assets_ = std::make_unique<SceneAssets>(cache, p.fastLevel, gridRadius, true, makeClustering(p.clustering));
   if (p.useCache && p.cacheMeshes) assets_->setMeshCache(std::make_shared<MeshCache>(p.cacheDir));
   if (p.useService) {
-    assets_->setRemote([this](const TriangleMesh& mesh, double d, std::string& why) {
-      return fetchFromService(mesh, d, why);
-    });
+    assets_->setRemote(
+        [this](const TriangleMesh& mesh, double d, std::string& why) { return fetchFromService(mesh, d, why); });
   }
   const auto start = std::chrono::steady_clock::now();
   std::size_t triangles = 0;
@@ -200,13 +200,14 @@ void HapticDetector::loadObjects() {
   wanted_ = std::make_unique<std::atomic<bool>[]>(n);
   for (std::size_t i = 0; i < n; ++i) wanted_[i] = false;
   display_ = std::make_unique<DetectorDisplay>(config_.frameId, std::move(drawn), singleMesh_);
-  ROS_INFO("detector: %zu object%s (%zu triangles) loaded in %.0f ms in frame '%s'; poses from %s; levels from %s%s"
-           "a local build",
-           n, n == 1 ? "" : "s", triangles,
-           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
-           config_.frameId.c_str(), nh_.resolveName(p.poseTopic).c_str(),
-           cache ? ("the cache " + cache->directory() + ", ").c_str() : "",
-           p.useService ? ("the service " + nh_.resolveName(p.sphereService) + ", ").c_str() : "");
+  ROS_INFO(
+      "detector: %zu object%s (%zu triangles) loaded in %.0f ms in frame '%s'; poses from %s; levels from %s%s"
+      "a local build",
+      n, n == 1 ? "" : "s", triangles,
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
+      config_.frameId.c_str(), nh_.resolveName(p.poseTopic).c_str(),
+      cache ? ("the cache " + cache->directory() + ", ").c_str() : "",
+      p.useService ? ("the service " + nh_.resolveName(p.sphereService) + ", ").c_str() : "");
 }
 
 void HapticDetector::advertise() {
@@ -236,8 +237,8 @@ void HapticDetector::startThreads() {
   poseThread_ = std::thread(&HapticDetector::poseLoop, this);
   ROS_INFO("detector: pose policy '%s', pose queue %d, publish queue %d", toString(params_.posePolicy),
            params_.poseQueueSize, params_.publishQueueSize);
-  displayTimer_ = displayPnh_.createSteadyTimer(ros::WallDuration(1.0 / params_.markerRate),
-                                                &HapticDetector::onDisplayTimer, this);
+  displayTimer_ =
+      displayPnh_.createSteadyTimer(ros::WallDuration(1.0 / params_.markerRate), &HapticDetector::onDisplayTimer, this);
   statusTimer_ = displayPnh_.createSteadyTimer(ros::WallDuration(1.0), &HapticDetector::onStatusTimer, this);
   displaySpinner_ = std::make_unique<ros::AsyncSpinner>(1, &displayQueue_);
   displaySpinner_->start();
@@ -255,9 +256,10 @@ void HapticDetector::poseLoop() {
     const int err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
     if (err != 0) {
       // Not a warning: most desktops allow no real-time priority, and the detector works without it.
-      ROS_INFO("detector: ~realtime_priority %d not granted (%s): the pose thread stays on the default "
-               "scheduler; allow it with 'ulimit -r %d' or an rtprio line in /etc/security/limits.conf",
-               priority, std::strerror(err), priority);
+      ROS_INFO(
+          "detector: ~realtime_priority %d not granted (%s): the pose thread stays on the default "
+          "scheduler; allow it with 'ulimit -r %d' or an rtprio line in /etc/security/limits.conf",
+          priority, std::strerror(err), priority);
     } else {
       ROS_INFO("detector: pose thread at SCHED_FIFO priority %d", priority);
     }

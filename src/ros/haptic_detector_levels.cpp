@@ -1,6 +1,4 @@
 // HapticDetector: dynamic_reconfigure and the levels (the worker thread prepares, the pose thread adopts).
-#include "clod_haptics/ros/haptic_detector.h"
-
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
@@ -14,6 +12,7 @@
 #include "clod_haptics/GetSphereSet.h"
 #include "clod_haptics/core/sphere_cache.h"
 #include "clod_haptics/ros/conversions.h"
+#include "clod_haptics/ros/haptic_detector.h"
 
 namespace clod_haptics {
 
@@ -35,10 +34,6 @@ void lowerThisThreadPriority(int nice) {
   if (::setpriority(PRIO_PROCESS, tid, nice) != 0) {
     ROS_DEBUG("detector: could not lower the level worker's priority: %s", std::strerror(errno));
   }
-}
-
-const char* nameOf(FastLevel fast) {
-  return fast == FastLevel::Grid ? "grid" : fast == FastLevel::Hierarchy ? "hierarchy" : "flat";
 }
 
 const char* sourceOf(const SceneAssets::LevelInfo& info) {
@@ -159,8 +154,8 @@ bool HapticDetector::prepareNextLevel(std::vector<LevelPlan>& plan) {
     auto level = assets_->level(mesh, p.distance, fast, &info);
     p.step = quick ? kQuick : kFinal;
     publishLevel(i, std::move(level), p.source, p.setMs + info.detectorMs);
-    ROS_INFO("detector: '%s' level d = %g in use (%s detector, %.1f ms)%s", name.c_str(), p.distance,
-             nameOf(fast), info.detectorMs, wanted_[i].load() ? ", asked for by the pointer" : "");
+    ROS_INFO("detector: '%s' level d = %g in use (%s detector, %.1f ms)%s", name.c_str(), p.distance, toString(fast),
+             info.detectorMs, wanted_[i].load() ? ", asked for by the pointer" : "");
   } catch (const std::exception& e) {
     ROS_ERROR("detector: '%s': cannot prepare level d = %g: %s; keeping its current level (or brute force)",
               name.c_str(), p.distance, e.what());

@@ -339,8 +339,7 @@ int cmdSweep(int argc, char** argv) {
   const bool json = args.has("--json");
   if (!json) {
     std::printf("mesh %s: %zu triangles, placement %.1f ms, %zu probes near the surface, r = %g, mode %s, fast %s\n",
-                l.mesh->name.c_str(), l.mesh->size(), l.placementMs, probes.size(), r, toString(mode),
-                fast == FastLevel::Flat ? "flat" : fast == FastLevel::Grid ? "grid" : "hierarchy");
+                l.mesh->name.c_str(), l.mesh->size(), l.placementMs, probes.size(), r, toString(mode), toString(fast));
     std::printf("%8s %9s %10s %11s %10s %10s %10s %10s %12s %9s %8s %8s\n", "d", "centres", "step_red%",
                 "total_red%", "build_ms", "fast_us", "precise_us", "total_us", "rate_Hz", "contacts", "spheres", "tris");
   } else {

@@ -30,7 +30,8 @@ TEST(PenaltyForce, PenaltyForceGrowsWhilePushingIn) {
   // The tube's middle at the outer equator: halfway between the inner and outer crossings of the x axis.
   double inner = 0.0;
   for (const Vec3& v : mesh->vertices)
-    if (std::abs(v.y()) < 1e-12 && std::abs(v.z()) < 1e-12 && v.x() > 0.0) inner = inner == 0.0 ? v.x() : std::min(inner, v.x());
+    if (std::abs(v.y()) < 1e-12 && std::abs(v.z()) < 1e-12 && v.x() > 0.0)
+      inner = inner == 0.0 ? v.x() : std::min(inner, v.x());
   ASSERT_GT(inner, 0.0);
   const double outer = 0.082, middle = 0.5 * (inner + outer);
   QueryCache cache;

@@ -23,13 +23,13 @@ const fs::path kRoot = fs::path(CLOD_PACKAGE_DATA_DIR).parent_path();
 
 // Lower layers first; a core file may include files of its own layer or below, never above.
 const std::map<std::string, int> kCoreLayer = {
-    {"errors", 0},        {"user_path", 0},        {"atomic_file", 0},   {"latency_histogram", 0},
-    {"parallel", 0},      {"float_rounding", 0},   {"mesh", 1},          {"geometry", 1},
-    {"mesh_loader", 1},   {"morton", 1},           {"probes", 1},        {"contact", 2},
-    {"brute_force", 2},   {"sphere_placement", 3}, {"clustering", 3},    {"tight_clustering", 3},
-    {"sphere_set", 4},    {"sphere_set_io", 4},    {"box_tree", 2},      {"triangle_bvh", 2},
-    {"cell_grid", 5},     {"detector", 6},         {"scene", 7},         {"sphere_cache", 7},
-    {"binary_io", 7},     {"mesh_cache", 7},       {"scene_assets", 8},
+    {"errors", 0},           {"user_path", 0},      {"atomic_file", 0},      {"latency_histogram", 0},
+    {"parallel", 0},         {"float_rounding", 0}, {"enum_names", 0},       {"mesh", 1},
+    {"geometry", 1},         {"mesh_loader", 1},    {"morton", 1},           {"probes", 1},
+    {"contact", 2},          {"brute_force", 2},    {"sphere_placement", 3}, {"clustering", 3},
+    {"tight_clustering", 3}, {"sphere_set", 4},     {"sphere_set_io", 4},    {"box_tree", 2},
+    {"triangle_bvh", 2},     {"cell_grid", 5},      {"detector", 6},         {"scene", 7},
+    {"sphere_cache", 7},     {"binary_io", 7},      {"mesh_cache", 7},       {"scene_assets", 8},
 };
 
 /** Every header and source of the package, by path relative to the root, with the files it includes. */
@@ -49,8 +49,8 @@ std::map<std::string, std::vector<std::string>> includeGraph() {
         if (!std::regex_search(line, m, include)) continue;
         const std::string name = m[1];
         // "clod_haptics/..." from include/, anything else next to the including file.
-        const fs::path target = name.rfind("clod_haptics/", 0) == 0 ? fs::path("include") / name
-                                                                     : fs::path(file).parent_path() / name;
+        const fs::path target =
+            name.rfind("clod_haptics/", 0) == 0 ? fs::path("include") / name : fs::path(file).parent_path() / name;
         edges.push_back(target.lexically_normal().string());
       }
     }
@@ -102,8 +102,8 @@ TEST(Layers, TheCoreIncludesOnlyItsOwnLayerOrBelow) {
           << file << " includes " << target << ": the core must not see the ROS or device layers";
       const auto other = kCoreLayer.find(stem(target));
       ASSERT_NE(other, kCoreLayer.end()) << target << " has no layer in kCoreLayer";
-      EXPECT_LE(other->second, own->second) << file << " (layer " << own->second << ") includes " << target
-                                            << " (layer " << other->second << ")";
+      EXPECT_LE(other->second, own->second)
+          << file << " (layer " << own->second << ") includes " << target << " (layer " << other->second << ")";
       ++checked;
     }
   }

@@ -34,9 +34,7 @@ std::map<std::string, std::string> readFlatYaml(const std::string& path) {
 }
 
 std::string str(bool b) { return b ? "true" : "false"; }
-double num(const std::map<std::string, std::string>& yaml, const std::string& key) {
-  return std::stod(yaml.at(key));
-}
+double num(const std::map<std::string, std::string>& yaml, const std::string& key) { return std::stod(yaml.at(key)); }
 
 TEST(HapticDetectorDefaults, ConfigDetectorYamlStatesTheCodesDefaults) {
   const auto yaml = readFlatYaml(std::string(CLOD_PACKAGE_DATA_DIR) + "/../config/detector.yaml");

@@ -42,6 +42,9 @@ struct QueryCache {
 /** \brief Parses "flat", "hierarchy" or "grid"; returns false for anything else. */
 bool parseFastLevel(const char* text, FastLevel& level);
 
+/** \brief The name parseFastLevel reads: "grid", "hierarchy" or "flat". */
+const char* toString(FastLevel level);
+
 /**
  * \brief Two-level collision detection of a pointer sphere against one CLOD level (paper 3.3).
  *

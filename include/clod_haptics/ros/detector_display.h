@@ -2,12 +2,11 @@
 
 #include <visualization_msgs/MarkerArray.h>
 
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/mesh.h"

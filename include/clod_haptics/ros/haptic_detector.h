@@ -39,30 +39,30 @@ enum class PosePolicy {
  * changes (distance, radius, stiffness, ...) take their defaults from cfg/Detector.cfg.
  */
 struct DetectorParameters {
-  std::string mesh;                     ///< ~mesh: one object (a scene of one); or ~scene, a scene file
-  std::string frameId = "world";        ///< ~frame_id: the frame of ~mesh
-  double scale = 1.0;                   ///< ~scale of ~mesh (file units to metres)
-  bool normalize = false;               ///< ~normalize ~mesh into the unit cube
+  std::string mesh;               ///< ~mesh: one object (a scene of one); or ~scene, a scene file
+  std::string frameId = "world";  ///< ~frame_id: the frame of ~mesh
+  double scale = 1.0;             ///< ~scale of ~mesh (file units to metres)
+  bool normalize = false;         ///< ~normalize ~mesh into the unit cube
   std::string poseTopic = "/phantom/pose";
   std::string sphereService = "sphere_builder/get_sphere_set";
-  bool useService = true;               ///< ask sphere_builder for levels the disk cache lacks
-  double serviceTimeout = 5.0;          ///< s to wait for sphere_builder before building here
-  bool useCache = true;                 ///< keep levels in a disk cache (~cache_dir)
-  std::string cacheDir;                 ///< "": $CLOD_CACHE_DIR, else $ROS_HOME/clod_haptics_cache, else ~/.ros/...
-  bool cacheMeshes = true;              ///< also cache parsed meshes (a restart skips the parser)
+  bool useService = true;       ///< ask sphere_builder for levels the disk cache lacks
+  double serviceTimeout = 5.0;  ///< s to wait for sphere_builder before building here
+  bool useCache = true;         ///< keep levels in a disk cache (~cache_dir)
+  std::string cacheDir;         ///< "": $CLOD_CACHE_DIR, else $ROS_HOME/clod_haptics_cache, else ~/.ros/...
+  bool cacheMeshes = true;      ///< also cache parsed meshes (a restart skips the parser)
   std::string clustering = "single-link";
   FastLevel fastLevel = FastLevel::Grid;
-  double gridRadius = 0.0;              ///< largest pointer radius the grid serves; 0: the pointer radius (scene) or 1%
+  double gridRadius = 0.0;  ///< largest pointer radius the grid serves; 0: the pointer radius (scene) or 1%
   PosePolicy posePolicy = PosePolicy::All;
-  int poseQueueSize = 5000;             ///< poses roscpp keeps for the detector (5 s at 1 kHz)
-  int publishQueueSize = 5000;          ///< answers kept per subscriber that reads too slowly
-  int realtimePriority = 50;            ///< SCHED_FIFO priority of the pose thread where allowed; 0: the default scheduler
-  double markerRate = 30.0;             ///< Hz, only while ~markers has subscribers
-  double staticRetry = 0.5;             ///< s between lookups of a static frame tf2 does not know yet
-  double prefetchMargin = 0.05;         ///< m: objects this close to the pointer get their levels first
-  bool quickStart = false;              ///< answer with hierarchy detectors first, then swap in the final ones
-  bool gridOnDemand = false;            ///< grid detectors only for objects the pointer comes near
-  bool detectorsOnDemand = false;       ///< no detector before the pointer comes near (sets are always read)
+  int poseQueueSize = 5000;        ///< poses roscpp keeps for the detector (5 s at 1 kHz)
+  int publishQueueSize = 5000;     ///< answers kept per subscriber that reads too slowly
+  int realtimePriority = 50;       ///< SCHED_FIFO priority of the pose thread where allowed; 0: the default scheduler
+  double markerRate = 30.0;        ///< Hz, only while ~markers has subscribers
+  double staticRetry = 0.5;        ///< s between lookups of a static frame tf2 does not know yet
+  double prefetchMargin = 0.05;    ///< m: objects this close to the pointer get their levels first
+  bool quickStart = false;         ///< answer with hierarchy detectors first, then swap in the final ones
+  bool gridOnDemand = false;       ///< grid detectors only for objects the pointer comes near
+  bool detectorsOnDemand = false;  ///< no detector before the pointer comes near (sets are always read)
 };
 
 /**
@@ -177,9 +177,9 @@ class HapticDetector {
   std::unique_ptr<SceneAssets> assets_;
   SceneDetector scene_;
   std::vector<ObjectState, Eigen::aligned_allocator<ObjectState>> objects_;
-  std::vector<SceneContact> contacts_;  // query output, one slot per object
-  std::vector<QueryCache> caches_;      // temporal coherence, one per object
-  std::uint64_t adoptedId_ = 0;         // the Levels the scene uses (pose thread)
+  std::vector<SceneContact> contacts_;     // query output, one slot per object
+  std::vector<QueryCache> caches_;         // temporal coherence, one per object
+  std::uint64_t adoptedId_ = 0;            // the Levels the scene uses (pose thread)
   std::atomic<std::uint64_t> adopted_{0};  // the same, for the thread that frees replaced Levels
 
   // Settings the hot path reads (written by dynamic_reconfigure).
@@ -196,10 +196,10 @@ class HapticDetector {
   std::condition_variable workerCv_;
   bool stop_ = false;
   bool distanceChanged_ = false;
-  std::unique_ptr<std::atomic<bool>[]> wanted_;  // per object: the pointer is near, prepare it first
-  std::atomic<const Levels*> published_{nullptr};  // the newest snapshot (owned by levels_)
-  std::mutex levelsMutex_;                          // never taken by the pose thread
-  std::shared_ptr<const Levels> levels_;            // the newest snapshot
+  std::unique_ptr<std::atomic<bool>[]> wanted_;         // per object: the pointer is near, prepare it first
+  std::atomic<const Levels*> published_{nullptr};       // the newest snapshot (owned by levels_)
+  std::mutex levelsMutex_;                              // never taken by the pose thread
+  std::shared_ptr<const Levels> levels_;                // the newest snapshot
   std::vector<std::shared_ptr<const Levels>> retired_;  // replaced snapshots, freed once a newer one is adopted
   std::uint64_t nextLevelsId_ = 1;
 
