@@ -1,6 +1,7 @@
 #include "clod_haptics/device/force_safety.h"
 
 #include <cmath>
+#include <cstddef>
 #include <stdexcept>
 #include <string>
 
@@ -20,21 +21,10 @@ void validate(const ForceSafetyParams& params) {
 }
 
 const char* toString(ForceStatus status) {
-  switch (status) {
-    case ForceStatus::Ok:
-      return "ok";
-    case ForceStatus::NoCommand:
-      return "no command";
-    case ForceStatus::NonFinite:
-      return "non-finite";
-    case ForceStatus::Stale:
-      return "stale";
-    case ForceStatus::Clamped:
-      return "clamped";
-    case ForceStatus::RateLimited:
-      return "rate limited";
-  }
-  return "unknown";
+  // In the order of the enum.
+  static const char* const kNames[] = {"ok", "no command", "non-finite", "stale", "clamped", "rate limited"};
+  const auto i = static_cast<std::size_t>(status);
+  return i < sizeof kNames / sizeof kNames[0] ? kNames[i] : "unknown";
 }
 
 ForceSafety::ForceSafety(const ForceSafetyParams& params) : params_(params) { validate(params_); }
