@@ -21,10 +21,12 @@
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/core/sphere_set_io.h"
+#include "clod_tool_io.h"
 
 namespace {
 
 using namespace clod_haptics;
+using namespace clod_tool;
 using Clock = std::chrono::steady_clock;
 
 const char* kUsage =
@@ -33,72 +35,55 @@ const char* kUsage =
     "  clod_tool query --mesh M [--scale S | --normalize] --distance D --radius R --mode exact|paper|spheres\n"
     "                  --probes P.csv --out RESULT.csv [--fast grid|hierarchy|flat] [--json]\n"
     "  clod_tool sweep --mesh M [--scale S | --normalize] --distances 0,0.01,...,0.08 [--radius R]\n"
-    "                  [--mode exact|paper] [--fast grid|hierarchy|flat] [--count N] [--json]\n";
-
-/** \brief A bad command line: printed as one line, exit code 2. */
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+    "                  [--mode exact|paper] [--fast grid|hierarchy|flat] [--count N] [--json]\n"
+    "bounds: --radius, --distance(s) in [0, 1e12]; --scale in [1e-12, 1e12], the scaled mesh's coordinates\n"
+    "  within 1e12 and its largest side at least 1e-12; --count an integer in [1, 1e7], default 20000.\n"
+    "probes: 'x,y,z' rows of finite numbers within 1e12, lines of at most 4096 bytes, an optional\n"
+    "  non-numeric header row.\n";
 
 double msSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-class Args {
- public:
-  Args(int argc, char** argv, const std::vector<std::string>& flags, const std::vector<std::string>& switches) {
-    for (int i = 2; i < argc; ++i) {
-      std::string a = argv[i];
-      if (std::find(switches.begin(), switches.end(), a) != switches.end()) {
-        values_[a] = "1";
-      } else if (std::find(flags.begin(), flags.end(), a) != flags.end()) {
-        if (i + 1 >= argc) throw UsageError(a + " needs a value");
-        values_[a] = argv[++i];
-      } else {
-        throw UsageError("unknown argument '" + a + "'");
-      }
-    }
-  }
-  bool has(const std::string& k) const { return values_.count(k) > 0; }
-  std::string get(const std::string& k) const {
-    auto it = values_.find(k);
-    if (it == values_.end()) throw UsageError("missing " + k);
-    return it->second;
-  }
-  std::string get(const std::string& k, const std::string& fallback) const { return has(k) ? get(k) : fallback; }
-  double number(const std::string& k) const { return parseNumber(k, get(k)); }
-  double number(const std::string& k, double fallback) const { return has(k) ? number(k) : fallback; }
-  static double parseNumber(const std::string& k, const std::string& text) {
-    std::size_t used = 0;
-    double v;
-    try {
-      v = std::stod(text, &used);
-    } catch (const std::exception&) {
-      throw UsageError(k + " expects a number, got '" + text + "'");
-    }
-    if (used != text.size()) throw UsageError(k + " expects a number, got '" + text + "'");
-    return v;
-  }
-
- private:
-  std::map<std::string, std::string> values_;
-};
-
-double nonNegative(const Args& args, const std::string& key, double fallback, bool required) {
-  const double v = required ? args.number(key) : args.number(key, fallback);
-  if (!std::isfinite(v) || v < 0.0) throw UsageError(key + " must be a finite number >= 0, got " + args.get(key));
-  return v;
-}
+// The bounds of the numeric options (kMaxLength says why lengths stop at 1e12).
+// --radius: 0 is a point probe; above kMaxLength the grid and the squared distances leave their range.
+constexpr Bound kRadius{0.0, kMaxLength};
+// --distance, --distances: clustering distances, lengths like the radius.
+constexpr Bound kDistance{0.0, kMaxLength};
+// --scale: a unit conversion (pm to m, m to Tm) needs no more than 1e12 either way; the loaded mesh is
+// then checked against kMaxLength and kMinExtent.
+constexpr Bound kScale{1e-12, 1e12};
+// --count: at least one probe; at most 1e7, whose probes (24 bytes), per-query timings (8 bytes) and
+// answers stay within a few hundred MB and whose timing passes stay within minutes per distance.
+constexpr Bound kCount{1.0, 1e7, true};
 
 MeshLoadOptions loadOptions(const Args& args) {
   MeshLoadOptions o;
-  if (args.has("--scale") && args.has("--normalize")) throw UsageError("--scale and --normalize exclude each other");
-  o.normalize = args.has("--normalize");
-  if (args.has("--scale")) {
-    o.scale = args.number("--scale");
-    if (!(o.scale > 0.0) || !std::isfinite(o.scale)) throw UsageError("--scale must be finite and > 0");
+  if (args.has("--scale") && args.has("--normalize")) {
+    throw ToolError(kUsageError, "--scale and --normalize exclude each other");
   }
+  o.normalize = args.has("--normalize");
+  o.scale = args.number("--scale", kScale, 1.0);
   return o;
+}
+
+// The loaded mesh within the lengths the arithmetic keeps finite: every coordinate within kMaxLength and
+// the largest side at least kMinExtent. Blamed on --scale when given, else on the file.
+void checkMeshSize(const TriangleMesh& mesh, const Args& args) {
+  double largest = 0.0;
+  Vec3 low = Vec3::Constant(INFINITY), high = Vec3::Constant(-INFINITY);
+  for (const Vec3& v : mesh.vertices) {
+    largest = std::max(largest, v.cwiseAbs().maxCoeff());
+    low = low.cwiseMin(v);
+    high = high.cwiseMax(v);
+  }
+  const double side = mesh.vertices.empty() ? 0.0 : (high - low).maxCoeff();
+  if (largest <= kMaxLength && side >= kMinExtent) return;
+  char problem[200];
+  std::snprintf(problem, sizeof problem, "has coordinates up to %g and a largest side of %g; the bounds are %g and %g",
+                largest, side, kMaxLength, kMinExtent);
+  if (args.has("--scale")) throw ToolError(kUsageError, "--scale " + args.get("--scale") + ": the mesh " + problem);
+  throw ToolError(kInputError, "mesh '" + args.get("--mesh") + "' " + problem + " (try --scale or --normalize)");
 }
 
 // Progress on stderr once a build has run for a second: a bar on a terminal, percentage lines otherwise.
@@ -128,70 +113,44 @@ struct Loaded {
   double placementMs = 0.0;
 };
 
-Loaded loadAndPlace(const Args& args) {
-  Loaded l;
-  auto start = Clock::now();
-  l.mesh = std::make_shared<TriangleMesh>(loadMesh(args.get("--mesh"), loadOptions(args)));
-  l.loadMs = msSince(start);
-  start = Clock::now();
-  const std::string clustering = args.get("--clustering", "single-link");
-  std::shared_ptr<const Clustering> strategy;
+std::shared_ptr<const Clustering> clusteringArg(const Args& args) {
   try {
-    strategy = requireClustering(clustering, "--clustering");
+    return requireClustering(args.get("--clustering", "single-link"), "--clustering");
   } catch (const InvalidParameter& e) {
-    throw UsageError(e.what());
+    throw ToolError(kUsageError, e.what());
   }
-  l.builder =
-      std::make_unique<ClodBuilder>(l.mesh, std::make_shared<PaperPlacement>(0, progressPrinter(start)), strategy);
-  l.placementMs = msSince(start);
-  return l;
 }
 
-std::vector<Vec3> readProbes(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw UsageError("cannot open probe file '" + path + "'");
-  std::vector<Vec3> probes;
-  std::string line;
-  std::size_t lineNo = 0;
-  while (std::getline(in, line)) {
-    ++lineNo;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.find_first_not_of(" \t") == std::string::npos) continue;
-    std::stringstream ss(line);
-    std::string cell;
-    double v[3];
-    int k = 0;
-    bool ok = true;
-    while (std::getline(ss, cell, ',') && k < 4) {
-      if (k == 3) {
-        ok = false;
-        break;
-      }
-      char* end = nullptr;
-      v[k] = std::strtod(cell.c_str(), &end);
-      if (end == cell.c_str() || std::string(end).find_first_not_of(" \t") != std::string::npos) ok = false;
-      ++k;
-    }
-    if (!ok || k != 3) {
-      if (lineNo == 1 && probes.empty()) continue;  // header line
-      throw UsageError(path + ":" + std::to_string(lineNo) + ": expected 'x,y,z'");
-    }
-    probes.emplace_back(v[0], v[1], v[2]);
-  }
-  return probes;
+// Loads the mesh, checks its size and places the spheres (options and strategy are parsed before, so a bad
+// command line fails before the expensive work).
+Loaded loadAndPlace(const Args& args, const MeshLoadOptions& options, std::shared_ptr<const Clustering> clustering) {
+  Loaded l;
+  auto start = Clock::now();
+  l.mesh = std::make_shared<TriangleMesh>(loadMesh(args.get("--mesh"), options));
+  checkMeshSize(*l.mesh, args);
+  l.loadMs = msSince(start);
+  start = Clock::now();
+  l.builder = std::make_unique<ClodBuilder>(l.mesh, std::make_shared<PaperPlacement>(0, progressPrinter(start)),
+                                            std::move(clustering));
+  l.placementMs = msSince(start);
+  return l;
 }
 
 DetectionMode modeArg(const Args& args, const char* fallback) {
   DetectionMode mode;
   const std::string m = args.get("--mode", fallback);
-  if (!parseDetectionMode(m.c_str(), mode)) throw UsageError("--mode must be exact, paper or spheres, got '" + m + "'");
+  if (!parseDetectionMode(m.c_str(), mode)) {
+    throw ToolError(kUsageError, "--mode must be exact, paper or spheres, got '" + m + "'");
+  }
   return mode;
 }
 
 FastLevel fastArg(const Args& args) {
   FastLevel level;
   const std::string f = args.get("--fast", "grid");
-  if (!parseFastLevel(f.c_str(), level)) throw UsageError("--fast must be grid, hierarchy or flat, got '" + f + "'");
+  if (!parseFastLevel(f.c_str(), level)) {
+    throw ToolError(kUsageError, "--fast must be grid, hierarchy or flat, got '" + f + "'");
+  }
   return level;
 }
 
@@ -231,15 +190,24 @@ Timing timeQueries(std::size_t n, Query&& query) {
   return {mean, std::max(0.0, median(each) - overhead)};
 }
 
+// Every option of a command parsed before any work: a bad value fails at once.
+struct MeshArgs {
+  MeshLoadOptions options;
+  std::shared_ptr<const Clustering> clustering;
+  explicit MeshArgs(const Args& args) : options(loadOptions(args)), clustering(clusteringArg(args)) {}
+};
+
 int cmdBuild(int argc, char** argv) {
   Args args(argc, argv, {"--mesh", "--scale", "--distance", "--out", "--clustering"}, {"--normalize", "--json"});
-  const double d = nonNegative(args, "--distance", 0.0, true);
+  const double d = args.number("--distance", kDistance);
+  const MeshArgs meshArgs(args);
   const std::string out = args.get("--out");
-  Loaded l = loadAndPlace(args);
+  checkWritable("--out", out);
+  Loaded l = loadAndPlace(args, meshArgs.options, meshArgs.clustering);
   const auto start = Clock::now();
   const ClodSphereSet set = l.builder->build(d);
   const double clusterMs = msSince(start);
-  writeSphereSetYaml(set, out);
+  writeOutput("--out", out, [&](std::ostream& stream) { writeSphereSetYaml(set, stream); });
   const double buildMs = l.placementMs + clusterMs;
   if (args.has("--json")) {
     std::printf(
@@ -259,17 +227,34 @@ int cmdBuild(int argc, char** argv) {
   return 0;
 }
 
+// RESULT.csv: one row per probe, the contact's distance, point and triangle, or empty cells for none.
+void writeResultsCsv(std::ostream& out, const std::vector<ContactResult>& results) {
+  out << "index,contact,distance,px,py,pz,triangle\n";
+  out.precision(17);
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    const ContactResult& c = results[i];
+    if (c.contact) {
+      out << i << ",1," << c.distance << ',' << c.point.x() << ',' << c.point.y() << ',' << c.point.z() << ','
+          << c.triangle << '\n';
+    } else {
+      out << i << ",0,,,,,\n";
+    }
+  }
+}
+
 int cmdQuery(int argc, char** argv) {
   Args args(argc, argv,
             {"--mesh", "--scale", "--distance", "--radius", "--mode", "--probes", "--out", "--fast", "--clustering"},
             {"--normalize", "--json"});
-  const double d = nonNegative(args, "--distance", 0.0, true);
-  const double r = nonNegative(args, "--radius", 0.0, true);
+  const double d = args.number("--distance", kDistance);
+  const double r = args.number("--radius", kRadius);
   const DetectionMode mode = modeArg(args, "exact");
   const FastLevel fast = fastArg(args);
-  const std::vector<Vec3> probes = readProbes(args.get("--probes"));
+  const MeshArgs meshArgs(args);
   const std::string outPath = args.get("--out");
-  Loaded l = loadAndPlace(args);
+  checkWritable("--out", outPath);
+  const std::vector<Vec3> probes = readProbes(args.get("--probes"));
+  Loaded l = loadAndPlace(args, meshArgs.options, meshArgs.clustering);
   auto start = Clock::now();
   auto set = std::make_shared<const ClodSphereSet>(l.builder->build(d));
   const double buildMs = l.placementMs + msSince(start);
@@ -277,23 +262,9 @@ int cmdQuery(int argc, char** argv) {
 
   std::vector<ContactResult> results(probes.size());
   const Timing timing = timeQueries(probes.size(), [&](std::size_t i) { detector.query(probes[i], r, mode, results[i]); });
-
-  std::ofstream out(outPath);
-  if (!out) throw UsageError("cannot open '" + outPath + "' for writing");
-  out << "index,contact,distance,px,py,pz,triangle\n";
-  out.precision(17);
-  std::size_t contacts = 0;
-  for (std::size_t i = 0; i < probes.size(); ++i) {
-    const ContactResult& c = results[i];
-    if (c.contact) {
-      ++contacts;
-      out << i << ",1," << c.distance << ',' << c.point.x() << ',' << c.point.y() << ',' << c.point.z() << ','
-          << c.triangle << '\n';
-    } else {
-      out << i << ",0,,,,,\n";
-    }
-  }
-  if (!out) throw UsageError("writing '" + outPath + "' failed");
+  writeOutput("--out", outPath, [&](std::ostream& out) { writeResultsCsv(out, results); });
+  const std::size_t contacts =
+      std::count_if(results.begin(), results.end(), [](const ContactResult& c) { return c.contact; });
   if (args.has("--json")) {
     std::printf(
         "{\"command\":\"query\",\"mesh\":\"%s\",\"triangles\":%zu,\"distance\":%.17g,\"radius\":%.17g,\"mode\":\"%s\","
@@ -314,12 +285,8 @@ std::vector<double> parseList(const std::string& text) {
   std::vector<double> values;
   std::stringstream ss(text);
   std::string item;
-  while (std::getline(ss, item, ',')) {
-    const double v = Args::parseNumber("--distances", item);
-    if (!std::isfinite(v) || v < 0.0) throw UsageError("--distances must be finite numbers >= 0, got '" + item + "'");
-    values.push_back(v);
-  }
-  if (values.empty()) throw UsageError("--distances is empty");
+  while (std::getline(ss, item, ',')) values.push_back(parseBounded("--distances", item, kDistance));
+  if (values.empty()) throw ToolError(kUsageError, "--distances is empty");
   return values;
 }
 
@@ -327,12 +294,15 @@ int cmdSweep(int argc, char** argv) {
   Args args(argc, argv, {"--mesh", "--scale", "--distances", "--radius", "--mode", "--fast", "--count", "--clustering"},
             {"--normalize", "--json"});
   const std::vector<double> distances = parseList(args.get("--distances"));
-  const double r = nonNegative(args, "--radius", 0.005, false);
+  const double r = args.number("--radius", kRadius, 0.005);
   const DetectionMode mode = modeArg(args, "exact");
-  if (mode == DetectionMode::Spheres) throw UsageError("sweep times a precise level: --mode exact or paper");
+  if (mode == DetectionMode::Spheres) {
+    throw ToolError(kUsageError, "sweep times a precise level: --mode exact or paper");
+  }
   const FastLevel fast = fastArg(args);
-  const double count = nonNegative(args, "--count", 20000, false);
-  Loaded l = loadAndPlace(args);
+  const double count = args.number("--count", kCount, 20000);
+  const MeshArgs meshArgs(args);
+  Loaded l = loadAndPlace(args, meshArgs.options, meshArgs.clustering);
   // Probes near the surface (within 2r on either side), the stylus's working zone; fixed seed.
   const std::vector<Vec3> probes = nearSurfaceProbes(*l.mesh, static_cast<std::size_t>(count), 2.0 * r, 20161129);
 
@@ -394,24 +364,43 @@ int cmdSweep(int argc, char** argv) {
   return 0;
 }
 
+int runCommand(int argc, char** argv) {
+  const std::string command = argv[1];
+  if (command == "build") return cmdBuild(argc, argv);
+  if (command == "query") return cmdQuery(argc, argv);
+  if (command == "sweep") return cmdSweep(argc, argv);
+  throw ToolError(kUsageError, "unknown command '" + command + "' (build, query or sweep)");
+}
+
+// Prints an error as one line on stderr (after what stdout holds) and returns its exit code.
+ExitCode failed(const char* what, ExitCode code) {
+  std::fflush(stdout);
+  std::fprintf(stderr, "clod_tool: %s\n", what);
+  return code;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
-    std::fputs(kUsage, argc < 2 ? stderr : stdout);
-    return argc < 2 ? 2 : 0;
+    std::FILE* to = argc < 2 ? stderr : stdout;
+    std::fputs(kUsage, to);
+    std::fputs(exitCodeTable().c_str(), to);
+    return argc < 2 ? kUsageError : kOk;
   }
-  const std::string command = argv[1];
   try {
-    if (command == "build") return cmdBuild(argc, argv);
-    if (command == "query") return cmdQuery(argc, argv);
-    if (command == "sweep") return cmdSweep(argc, argv);
-    throw UsageError("unknown command '" + command + "' (build, query or sweep)");
-  } catch (const UsageError& e) {
-    std::fprintf(stderr, "clod_tool: %s\n", e.what());
-    return 2;
+    const int code = runCommand(argc, argv);
+    finishStdout();
+    return code;
+  } catch (const ToolError& e) {
+    return failed(e.what(), e.code());
+  } catch (const MeshLoadError& e) {
+    return failed(e.what(), kInputError);
+  } catch (const InvalidParameter& e) {
+    return failed(e.what(), kUsageError);
+  } catch (const std::bad_alloc&) {
+    return failed("out of memory", kInternalError);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "clod_tool: %s\n", e.what());
-    return 1;
+    return failed(e.what(), kInternalError);
   }
 }

@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -57,10 +58,14 @@ class ClodTool : public ::testing::Test {
   }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
 
-  ToolRun run(const std::vector<std::string>& args) const {
-    std::string cmd = quote(CLOD_TOOL_PATH);
+  // Runs the tool through the shell; shell goes before the command (ulimit, trap), stdoutTo is where its
+  // standard output goes (stdout.txt in the test's directory by default).
+  ToolRun run(const std::vector<std::string>& args, const std::string& shell = "",
+              const std::string& stdoutTo = "") const {
+    std::string cmd = shell + quote(CLOD_TOOL_PATH);
     for (const auto& a : args) cmd += " " + quote(a);
-    cmd += " >" + quote(path("stdout.txt")) + " 2>" + quote(path("stderr.txt")) + " </dev/null";
+    cmd += " >" + quote(stdoutTo.empty() ? path("stdout.txt") : stdoutTo) + " 2>" + quote(path("stderr.txt")) +
+           " </dev/null";
     ToolRun r;
     const int status = std::system(cmd.c_str());
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
@@ -81,6 +86,33 @@ class ClodTool : public ::testing::Test {
     if (!mentions.empty()) {
       EXPECT_NE(r.err.find(mentions), std::string::npos) << joined << "\nstderr: " << r.err;
     }
+  }
+
+  // An error with exit code: exactly one line on stderr, mentioning each of mentions.
+  void expectExit(int code, const std::vector<std::string>& args, const std::vector<std::string>& mentions,
+                  const std::string& shell = "") const {
+    const ToolRun r = run(args, shell);
+    std::string joined;
+    for (const auto& a : args) joined += a + " ";
+    EXPECT_EQ(r.code, code) << joined << "\nstderr: " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << joined << "\nstderr: " << r.err;
+    for (const auto& m : mentions) EXPECT_NE(r.err.find(m), std::string::npos) << joined << "\nstderr: " << r.err;
+  }
+
+  // The files in the test's directory other than the tool's stdout.txt and stderr.txt.
+  std::vector<std::string> filesLeft() const {
+    std::vector<std::string> names;
+    for (const auto& e : std::filesystem::directory_iterator(dir_)) {
+      const std::string name = e.path().filename().string();
+      if (name != "stdout.txt" && name != "stderr.txt") names.push_back(name);
+    }
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+
+  void writeFile(const std::string& name, const std::string& text) const {
+    std::ofstream out(path(name), std::ios::binary);
+    out << text;
   }
 
   std::filesystem::path dir_;
@@ -307,6 +339,162 @@ TEST_F(ClodTool, HelpGoesToStdoutWithZeroExit) {
   const ToolRun r = run({"--help"});
   EXPECT_EQ(r.code, 0);
   EXPECT_NE(r.out.find("usage"), std::string::npos);
+}
+
+// The exit codes --help lists: 1 input, 2 usage, 3 output; the same code for the same error in every command.
+TEST_F(ClodTool, HelpListsTheExitCodes) {
+  const ToolRun r = run({"--help"});
+  EXPECT_NE(r.out.find("exit codes"), std::string::npos) << r.out;
+  for (const char* line : {"0  success", "1  input error", "2  usage error", "3  output error", "4  internal error"})
+    EXPECT_NE(r.out.find(line), std::string::npos) << line;
+}
+
+TEST_F(ClodTool, OneExitCodePerKindOfError) {
+  const std::string mesh = clod_test::testData("cube.obj");
+  writeFile("p.csv", "0.5,0.5,0.5\n");
+  const std::vector<std::string> query = {"query", "--mesh", mesh, "--distance", "0.1", "--radius", "0.1", "--probes"};
+  auto with = [](std::vector<std::string> a, const std::vector<std::string>& more) {
+    a.insert(a.end(), more.begin(), more.end());
+    return a;
+  };
+  expectExit(1, {"build", "--mesh", path("missing.obj"), "--distance", "0.1", "--out", path("s.yaml")},
+             {"missing.obj"});
+  expectExit(1, with(query, {path("none.csv"), "--out", path("r.csv")}), {"none.csv"});
+  expectExit(2, with(query, {path("p.csv"), "--out", path("r.csv"), "--mode", "fuzzy"}), {"--mode"});
+  expectExit(3, {"build", "--mesh", mesh, "--distance", "0.1", "--out", path("no/dir/s.yaml")}, {"--out", "no/dir"});
+  expectExit(3, with(query, {path("p.csv"), "--out", path("no/dir/r.csv")}), {"--out", "no/dir"});
+  expectExit(3, {"build", "--mesh", mesh, "--distance", "0.1", "--out", dir_.string()}, {"is a directory"});
+}
+
+// --out is checked before the mesh is even loaded: a missing mesh with a bad --out reports the --out.
+TEST_F(ClodTool, BuildChecksOutBeforeBuilding) {
+  expectExit(3, {"build", "--mesh", path("missing.obj"), "--distance", "0.1", "--out", path("no/dir/s.yaml")},
+             {"--out"});
+}
+
+TEST_F(ClodTool, RadiusAboveTheBoundIsRefused) {
+  writeFile("p.csv", "2,3,3\n");
+  for (const char* radius : {"1e13", "1e152", "1e308", "1e400"})
+    expectExit(2, {"query", "--mesh", clod_test::testData("cube.obj"), "--distance", "0.1", "--radius", radius,
+                   "--probes", path("p.csv"), "--out", path("r.csv")},
+               {"--radius", "1e+12"});
+  EXPECT_TRUE(filesLeft() == std::vector<std::string>{"p.csv"});
+  // The bound itself is accepted, and a probe 1 from the cube touches a pointer that large.
+  const ToolRun r = run({"query", "--mesh", clod_test::testData("cube.obj"), "--distance", "0.1", "--radius", "1e12",
+                         "--probes", path("p.csv"), "--out", path("r.csv"), "--json"});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(jsonInt(r.out, "contacts"), 1) << r.out;
+}
+
+// A subnormal number is a number: accepted where the bound allows it.
+TEST_F(ClodTool, SubnormalNumbersAreNumbers) {
+  const std::string mesh = clod_test::testData("cube.obj");
+  ToolRun r = run({"build", "--mesh", mesh, "--distance", "1e-320", "--out", path("s.yaml")});
+  EXPECT_EQ(r.code, 0) << r.err;
+  writeFile("p.csv", "2,3,3\n0,0,0\n");
+  r = run({"query", "--mesh", mesh, "--distance", "0", "--radius", "1e-320", "--probes", path("p.csv"), "--out",
+           path("r.csv"), "--json"});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(jsonInt(r.out, "probes"), 2) << r.out;
+}
+
+TEST_F(ClodTool, ScaleThatOverflowsIsRefused) {
+  const std::string mesh = clod_test::testData("cube.obj");  // coordinates 1 to 5
+  for (const char* scale : {"1e160", "1e308", "1e-13", "0"})
+    expectExit(2, {"build", "--mesh", mesh, "--scale", scale, "--distance", "0", "--out", path("s.yaml")},
+               {"--scale", "1e+12"});
+  // Within the option's bound, but the scaled cube reaches 5e12.
+  expectExit(2, {"build", "--mesh", mesh, "--scale", "1e12", "--distance", "0", "--out", path("s.yaml")},
+             {"--scale", "5e+12"});
+  EXPECT_TRUE(filesLeft().empty());
+  const ToolRun r = run({"build", "--mesh", mesh, "--scale", "1e11", "--distance", "0", "--out", path("s.yaml")});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(readAll(path("s.yaml")).find("inf"), std::string::npos);
+}
+
+TEST_F(ClodTool, SweepCountIsAnIntegerWithinItsBound) {
+  for (const char* count : {"1e308", "0", "-1", "2.5", "1e8", "nan"})
+    expectExit(2, {"sweep", "--mesh", clod_test::testData("cube.obj"), "--distances", "0", "--count", count},
+               {"--count", "1e+07"});
+}
+
+TEST_F(ClodTool, QueryWriteErrorIsAnOutputError) {
+  writeFile("p.csv", "2,3,3\n");
+  expectExit(3, {"query", "--mesh", clod_test::testData("cube.obj"), "--distance", "0.1", "--radius", "0.1",
+                 "--probes", path("p.csv"), "--out", "/dev/full"},
+             {"/dev/full", "No space left"});
+}
+
+TEST_F(ClodTool, StdoutWriteErrorIsAnOutputError) {
+  const ToolRun r = run({"build", "--mesh", clod_test::testData("cube.obj"), "--distance", "0.1", "--out",
+                         path("s.yaml")},
+                        "", "/dev/full");
+  EXPECT_EQ(r.code, 3) << r.err;
+  EXPECT_NE(r.err.find("standard output"), std::string::npos) << r.err;
+}
+
+// A full disk (a file size limit, SIGXFSZ ignored so the write fails with EFBIG) in the middle of RESULT.csv
+// and SPHERES.yaml: exit 3, the previous file intact, no temporary file left.
+TEST_F(ClodTool, FullDiskLeavesThePreviousFileAndNoTemporary) {
+  const std::string mesh = clod_test::sharedMesh("head.off");
+  std::string csv;
+  for (const Vec3& p : nearSurfaceProbes(*clod_test::loadNormalized(mesh), 2000, 0.01, 3))
+    csv += std::to_string(p.x()) + "," + std::to_string(p.y()) + "," + std::to_string(p.z()) + "\n";
+  writeFile("p.csv", csv);
+  writeFile("r.csv", "previous\n");
+  writeFile("s.yaml", "previous\n");
+  const std::string limit = "ulimit -f 16; trap '' XFSZ; ";
+  expectExit(3, {"query", "--mesh", mesh, "--normalize", "--distance", "0.02", "--radius", "0.01", "--probes",
+                 path("p.csv"), "--out", path("r.csv")},
+             {"--out", "r.csv"}, limit);
+  expectExit(3, {"build", "--mesh", mesh, "--normalize", "--distance", "0", "--out", path("s.yaml")},
+             {"--out", "s.yaml"}, limit);
+  EXPECT_EQ(readAll(path("r.csv")), "previous\n");
+  EXPECT_EQ(readAll(path("s.yaml")), "previous\n");
+  EXPECT_EQ(filesLeft(), (std::vector<std::string>{"p.csv", "r.csv", "s.yaml"}));
+}
+
+class ClodToolProbes : public ClodTool {
+ protected:
+  void expectProbeError(const std::string& probes, const std::vector<std::string>& mentions,
+                        const std::string& shell = "") const {
+    expectExit(1, {"query", "--mesh", clod_test::testData("cube.obj"), "--distance", "0.1", "--radius", "0.1",
+                   "--probes", probes, "--out", path("r.csv")},
+               mentions, shell);
+    EXPECT_FALSE(std::filesystem::exists(path("r.csv"))) << probes;
+  }
+};
+
+TEST_F(ClodToolProbes, ReadErrorIsNotTheEndOfTheFile) {
+  std::filesystem::create_directories(path("dir.csv"));
+  expectProbeError(path("dir.csv"), {"dir.csv", "Is a directory"});
+}
+
+// A line of NUL bytes: refused at 4096 bytes, not read into memory without bound.
+TEST_F(ClodToolProbes, LongLineIsRefused) {
+  writeFile("zeros.csv", std::string(100000, '\0'));
+  expectProbeError(path("zeros.csv"), {"zeros.csv:1:", "4096"});
+  writeFile("digits.csv", "0.5,0.5," + std::string(5000, '5') + "\n");
+  expectProbeError(path("digits.csv"), {"digits.csv:1:", "4096"});
+  expectProbeError("/dev/zero", {"/dev/zero:1:", "4096"}, "timeout -s KILL 60 ");
+}
+
+TEST_F(ClodToolProbes, MalformedFirstLineIsAnError) {
+  writeFile("two.csv", "1,2\n0.5,0.5,0.5\n");
+  expectProbeError(path("two.csv"), {"two.csv:1:", "3 columns"});
+  writeFile("mixed.csv", "x,2,z\n0.5,0.5,0.5\n");
+  expectProbeError(path("mixed.csv"), {"mixed.csv:1:", "'x'"});
+  writeFile("header2.csv", "x,y\n0.5,0.5,0.5\n");
+  expectProbeError(path("header2.csv"), {"header2.csv:1:", "3 columns"});
+  writeFile("second.csv", "x,y,z\nx,y,z\n");
+  expectProbeError(path("second.csv"), {"second.csv:2:"});
+}
+
+TEST_F(ClodToolProbes, CoordinatesAreFiniteAndBounded) {
+  for (const char* row : {"nan,0,0", "0,inf,0", "0,0,1e13", "1e400,0,0", "0,0,1x", "0,0,"}) {
+    writeFile("p.csv", std::string("x,y,z\n0.5,0.5,0.5\n") + row + "\n");
+    expectProbeError(path("p.csv"), {"p.csv:3:"});
+  }
 }
 
 }  // namespace
