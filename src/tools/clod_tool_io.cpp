@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <utility>
 
 #include "clod_haptics/core/atomic_file.h"
 #include "clod_haptics/core/errors.h"
@@ -21,12 +22,16 @@ namespace clod_tool {
 using clod_haptics::Vec3;
 
 std::string exitCodeTable() {
-  return "exit codes:\n"
-         "  0  success\n"
-         "  1  input error: the mesh or the probe file is missing, unreadable or malformed\n"
-         "  2  usage error: unknown command or option, missing value, number outside its bound\n"
-         "  3  output error: --out or standard output cannot be created or written (nothing is left behind)\n"
-         "  4  internal error: out of memory or a bug\n";
+  static const std::pair<ExitCode, const char*> kMeanings[] = {
+      {kOk, "success"},
+      {kInputError, "input error: the mesh or the probe file is missing, unreadable or malformed"},
+      {kUsageError, "usage error: unknown command or option, missing value, number outside its bound"},
+      {kOutputError, "output error: --out or standard output cannot be written (a regular --out is left as it was)"},
+      {kInternalError, "internal error: out of memory or a bug"},
+  };
+  std::string table = "exit codes:\n";
+  for (const auto& m : kMeanings) table += "  " + std::to_string(m.first) + "  " + m.second + "\n";
+  return table;
 }
 
 // ---- numbers ----

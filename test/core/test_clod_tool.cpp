@@ -1,5 +1,7 @@
 // clod_tool, the command-line program: build, query (its RESULT.csv against bruteForceQuery),
-// sweep --json, and every bad input giving one line on stderr and a non-zero exit.
+// sweep --json, and every bad input giving one line on stderr and the exit code of its kind (1 input,
+// 2 usage, 3 output): numbers outside their bounds, probe files that cannot be read or are malformed,
+// outputs that cannot be written (which leave the previous file and no temporary behind).
 
 #include <gtest/gtest.h>
 
