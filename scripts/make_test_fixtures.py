@@ -8,7 +8,14 @@ STL binary, PLY ascii, PLY binary, OFF and DAE, each with one vertex per face co
 allows it (so the loader's vertex joining is what brings them back to 8); a 4 x 2 x 1 box (for the
 normalisation); a cube with one extra zero-area triangle.
 Bad fixtures: unreadable bytes, a file with points and lines but no triangle, NaN and Inf coordinates.
+Hostile fixtures (hostile_*): each must be refused with a message naming the problem, never loaded as
+another mesh: a truncated ASCII PLY, a PLY with fewer faces than its header, OFF face indices out of range,
+negative or not a number, a truncated OFF, a gzip file, a header claiming 2e9 vertices, a 1e400 coordinate.
+Precision fixtures (precise_*): one box with full-precision coordinates near x = 1e5 in every format;
+precise_expected.txt holds the doubles each coordinate text rounds to (Python's float(), correctly rounded
+like strtod), and the float32 values the binary STL holds.
 """
+import gzip
 import os
 import struct
 import sys
@@ -178,6 +185,99 @@ def split_corners(verts, tris):
     return out_v, out_t
 
 
+# Coordinates of the precision box: 17 significant digits, an exponent form, an offset of 1e5.
+PRECISE_AXES = (("100000.12345678901234567", "100002.98765432109876543"),
+                ("2.6809542760020122e-05", "0.1234567890123456789"),
+                ("-3.3333333333333335", "1.0000000000000002"))
+
+
+def precise_fixtures(p):
+    text = [tuple(PRECISE_AXES[k][v[k]] for k in range(3)) for v in UNIT]
+    values = [tuple(float(c) for c in t) for t in text]
+    f32 = [tuple(struct.unpack("<f", struct.pack("<f", c))[0] for c in v) for v in values]
+    with open(p("precise_expected.txt"), "w") as f:
+        f.write("# x y z as repr(float(text)) (double), then the float32 values of precise_binary.stl\n")
+        for v in values:
+            f.write("double %s %s %s\n" % tuple(repr(c) for c in v))
+        for v in f32:
+            f.write("float %s %s %s\n" % tuple(repr(c) for c in v))
+    with open(p("precise.off"), "w") as f:
+        f.write("OFF\n%d %d 0\n" % (len(text), len(TRIS)))
+        f.writelines("%s %s %s\n" % t for t in text)
+        f.writelines("3 %d %d %d\n" % t for t in TRIS)
+    with open(p("precise.obj"), "w") as f:  # quads, relative indices and v/vt/vn corners
+        f.writelines("v %s %s %s\n" % t for t in text)
+        f.write("vt 0 0\nvn 0 0 1\n")
+        for n, q in enumerate(QUADS):
+            idx = [i - len(text) if n % 2 else i + 1 for i in q]  # odd quads: negative (relative) indices
+            f.write("f " + " ".join(fmt_corner(i, n) for i in idx) + "\n")
+    header = ("ply\nformat %s 1.0\nelement vertex %d\nproperty double x\nproperty double y\nproperty double z\n"
+              "element face %d\nproperty list uchar int vertex_indices\nend_header\n")
+    with open(p("precise_ascii.ply"), "w") as f:
+        f.write(header % ("ascii", len(text), len(TRIS)))
+        f.writelines("%s %s %s\n" % t for t in text)
+        f.writelines("3 %d %d %d\n" % t for t in TRIS)
+    for name, order, e in (("le", "little", "<"), ("be", "big", ">")):
+        with open(p("precise_binary_%s.ply" % name), "wb") as f:
+            f.write((header % ("binary_%s_endian" % order, len(text), len(TRIS))).encode())
+            for v in values:
+                f.write(struct.pack(e + "3d", *v))
+            for t in TRIS:
+                f.write(struct.pack(e + "B3i", 3, *t))
+    with open(p("precise_ascii.stl"), "w") as f:
+        f.write("solid precise\n")
+        for t in TRIS:
+            f.write("facet normal 0 0 0\nouter loop\n")
+            f.writelines("vertex %s %s %s\n" % text[i] for i in t)
+            f.write("endloop\nendfacet\n")
+        f.write("endsolid precise\n")
+    write_stl_binary(p("precise_binary.stl"), values, TRIS)
+
+
+def fmt_corner(i, n):
+    return ("%d", "%d/1", "%d/1/1", "%d//1")[n % 4] % i
+
+
+def hostile_fixtures(p, cube, split_v, split_t):
+    # An ASCII PLY cut in the middle of its faces: assimp aborted (SIGABRT) on it.
+    write_ply_ascii(p("hostile_truncated_ascii.ply"), cube, TRIS)
+    with open(p("hostile_truncated_ascii.ply")) as f:
+        body = f.read()
+    with open(p("hostile_truncated_ascii.ply"), "w") as f:
+        f.write(body[: body.index("3 0 4 6") + 5])
+    # A PLY whose header says 12 faces, followed by one: assimp padded the list with copies of the last face.
+    write_ply_ascii(p("hostile_fewer_faces.ply"), cube, TRIS[:1])
+    with open(p("hostile_fewer_faces.ply")) as f:
+        body = f.read()
+    with open(p("hostile_fewer_faces.ply"), "w") as f:
+        f.write(body.replace("element face 1\n", "element face 12\n"))
+    # OFF face indices assimp clamped to the last vertex (8) or read as 0 (-1, abc).
+    for name, bad in (("index_too_large", "8"), ("index_negative", "-1"), ("index_text", "abc")):
+        tris = [tuple(str(i) for i in t) for t in TRIS]
+        tris[4] = (tris[4][0], bad, tris[4][2])
+        with open(p("hostile_off_%s.off" % name), "w") as f:
+            f.write("OFF\n8 12 0\n")
+            f.writelines("%s %s %s\n" % tuple(fmt(c) for c in v) for v in cube)
+            f.writelines("3 %s %s %s\n" % t for t in tris)
+    # An OBJ face beyond the vertices.
+    write_obj(p("hostile_obj_index_too_large.obj"), cube, TRIS[:11] + [(0, 8, 1)])
+    # A gzip-compressed OFF under the .off name.
+    with open(p("cube.off"), "rb") as f:
+        cube_off = f.read()
+    with open(p("hostile_gzip.off"), "wb") as f:
+        f.write(gzip.compress(cube_off, mtime=0))
+    # A header claiming 2e9 vertices: nothing may be reserved for them.
+    with open(p("hostile_huge_count.off"), "w") as f:
+        f.write("OFF\n2000000000 12 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    with open(p("hostile_huge_count.ply"), "w") as f:
+        f.write("ply\nformat binary_little_endian 1.0\nelement vertex 2000000000\nproperty float x\n"
+                "property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                "end_header\n" + "\0" * 48)
+    # A coordinate beyond the double range; 1e308 itself is finite and loads as written.
+    write_off(p("hostile_coordinate_1e400.off"), cube, TRIS, text={3: "1 1e400 3"})
+    write_off(p("coordinate_1e308.off"), cube, TRIS, text={3: "1 1e308 3"})
+
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     out = sys.argv[1] if len(sys.argv) > 1 else os.path.join(here, "..", "test", "data")
@@ -231,6 +331,8 @@ def main():
         lines = f.read().replace("v 3.0 4.0 5.0", "v 3.0 nan 5.0")
     with open(p("nan_vertex.obj"), "w") as f:
         f.write(lines)
+    hostile_fixtures(p, cube, split_v, split_t)
+    precise_fixtures(p)
 
 
 if __name__ == "__main__":

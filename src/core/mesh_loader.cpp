@@ -1,41 +1,30 @@
 #include "clod_haptics/core/mesh_loader.h"
 
 #include <cmath>
+#include <cctype>
 #include <cstring>
 #include <filesystem>
-#include <cctype>
 #include <fstream>
-#include <sstream>
+#include <iostream>
 #include <unordered_map>
+#include <utility>
 
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
 #include "clod_haptics/core/errors.h"
+#include "mesh_readers/polygon_soup.h"
+#include "mesh_readers/text_scanner.h"
 
 namespace clod_haptics {
 namespace {
 
-struct PositionHash {
-  std::size_t operator()(const Vec3& v) const {
-    std::size_t h = 1469598103934665603ull;
-    for (int k = 0; k < 3; ++k) {
-      double x = v[k] == 0.0 ? 0.0 : v[k];  // +0 and -0 are one position
-      std::uint64_t bits;
-      std::memcpy(&bits, &x, sizeof bits);
-      h = (h ^ bits) * 1099511628211ull;
-    }
-    return h;
-  }
-};
-struct PositionEqual {
-  bool operator()(const Vec3& a, const Vec3& b) const { return a == b; }
-};
+using detail::PositionHash;
 
 // Walks the node tree so every mesh instance lands in model coordinates.
 void collect(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent, std::vector<Vec3>& vertices,
-             std::vector<Triangle>& triangles, std::unordered_map<Vec3, std::uint32_t, PositionHash, PositionEqual>& ids,
+             std::vector<Triangle>& triangles, std::unordered_map<Vec3, std::uint32_t, PositionHash>& ids,
              bool& nonFinite, std::string& badIndex) {
   const aiMatrix4x4 transform = parent * node->mTransformation;
   for (unsigned m = 0; m < node->mNumMeshes; ++m) {
@@ -68,57 +57,63 @@ void collect(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent
     collect(scene, node->mChildren[c], transform, vertices, triangles, ids, nonFinite, badIndex);
 }
 
-// assimp 5.2's PLY reader can loop forever on a malformed header, so the header is checked first:
-// "ply", a format line, element lines with a count, property lines and end_header, within 64 KiB.
-// Returns an empty string when it is well formed, or why it is not.
-std::string plyHeaderProblem(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::string line;
-  std::size_t read = 0, lineNo = 0;
-  bool format = false;
-  while (std::getline(in, line)) {
-    read += line.size() + 1;
-    ++lineNo;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::istringstream words(line);
-    std::string word;
-    words >> word;
-    if (lineNo == 1) {
-      if (word != "ply") return "first line is not 'ply'";
-      continue;
-    }
-    if (word == "end_header") return format ? "" : "no format line before end_header";
-    if (word == "comment" || word == "obj_info" || word.empty()) {
-    } else if (word == "format") {
-      std::string kind, version;
-      words >> kind >> version;
-      if ((kind != "ascii" && kind != "binary_little_endian" && kind != "binary_big_endian") || version.empty())
-        return "line " + std::to_string(lineNo) + ": unknown format '" + line + "'";
-      format = true;
-    } else if (word == "element") {
-      std::string name, count;
-      words >> name >> count;
-      if (name.empty() || count.empty() || count.find_first_not_of("0123456789") != std::string::npos)
-        return "line " + std::to_string(lineNo) + ": malformed element line '" + line + "'";
-    } else if (word == "property") {
-      std::string type, name;
-      words >> type >> name;
-      if (type.empty() || name.empty()) return "line " + std::to_string(lineNo) + ": malformed property line";
-    } else {
-      return "line " + std::to_string(lineNo) + ": unexpected '" + word + "' in the header";
-    }
-    if (read > 65536) break;
-  }
-  return "no end_header within the first 64 KiB";
-}
-
-bool looksLikePly(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  char magic[3] = {0, 0, 0};
-  in.read(magic, 3);
+std::string lowerExtension(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return ext == ".ply" || (in.gcount() == 3 && magic[0] == 'p' && magic[1] == 'l' && magic[2] == 'y');
+  return ext;
+}
+
+using SoupReader = detail::PolygonSoup (*)(const std::string&, const std::string&);
+
+// The double-precision reader of the file's format, or nullptr for a format left to assimp. A file that starts
+// with "ply" goes to the PLY reader whatever its name: assimp 5.2's PLY reader can loop forever on a malformed
+// header.
+SoupReader readerFor(const std::string& path) {
+  const std::string ext = lowerExtension(path);
+  if (ext == ".off") return detail::readOff;
+  if (ext == ".obj") return detail::readObj;
+  if (ext == ".ply") return detail::readPly;
+  if (ext == ".stl") return detail::readStl;
+  std::ifstream in(path, std::ios::binary);
+  char magic[4] = {0, 0, 0, 0};
+  in.read(magic, 4);
+  if (in.gcount() == 4 && std::memcmp(magic, "ply", 3) == 0 && (magic[3] == '\n' || magic[3] == '\r'))
+    return detail::readPly;
+  return nullptr;
+}
+
+std::pair<std::vector<Vec3>, std::vector<Triangle>> readWithSoupReader(const std::string& path, SoupReader reader) {
+  const detail::PolygonSoup soup = reader(path, detail::readWholeFile(path));
+  std::pair<std::vector<Vec3>, std::vector<Triangle>> mesh;
+  detail::triangulateSoup(soup, mesh.first, mesh.second);
+  return mesh;
+}
+
+// Every other format, through assimp: its Debian build reads coordinates as float32, hence the warning.
+std::pair<std::vector<Vec3>, std::vector<Triangle>> readWithAssimp(const std::string& path) {
+  std::clog << "clod_haptics: warning: '" << path << "' is read by assimp in single precision (coordinates rounded "
+            << "to float32); OFF, OBJ, PLY and STL are read in double\n";
+  Assimp::Importer importer;
+  // Join only exact duplicates ourselves (assimp's joining also compares normals and UVs, so an STL's
+  // per-face vertices would stay apart); keep degenerate triangles: they must be covered too.
+  // ValidateDataStructure runs first and fails the import on out-of-range indices, which some readers
+  // pass through and the later steps would read out of bounds.
+  const aiScene* scene =
+      importer.ReadFile(path, aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_SortByPType);
+  if (scene == nullptr) {
+    std::string why = importer.GetErrorString();
+    throw MeshLoadError(path, "unreadable format (" + (why.empty() ? std::string("assimp gave no reason") : why) + ")");
+  }
+  if (scene->mRootNode == nullptr) throw MeshLoadError(path, "the file holds no scene");
+
+  std::pair<std::vector<Vec3>, std::vector<Triangle>> mesh;
+  std::unordered_map<Vec3, std::uint32_t, PositionHash> ids;
+  bool nonFinite = false;
+  std::string badIndex;
+  collect(scene, scene->mRootNode, aiMatrix4x4(), mesh.first, mesh.second, ids, nonFinite, badIndex);
+  if (nonFinite) throw MeshLoadError(path, "non-finite vertex coordinates (NaN or Inf)");
+  if (!badIndex.empty()) throw MeshLoadError(path, "corrupt file: " + badIndex);
+  return mesh;
 }
 
 }  // namespace
@@ -164,32 +159,8 @@ TriangleMesh loadMesh(const std::string& path, const MeshLoadOptions& options) {
   if (std::filesystem::is_directory(path, ec)) throw MeshLoadError(path, "is a directory, not a mesh file");
   if (!std::ifstream(path).good()) throw MeshLoadError(path, "file cannot be opened for reading");
 
-  if (looksLikePly(path)) {
-    const std::string problem = plyHeaderProblem(path);
-    if (!problem.empty()) throw MeshLoadError(path, "malformed PLY header: " + problem);
-  }
-
-  Assimp::Importer importer;
-  // Join only exact duplicates ourselves (assimp's joining also compares normals and UVs, so an STL's
-  // per-face vertices would stay apart); keep degenerate triangles: they must be covered too.
-  // ValidateDataStructure runs first and fails the import on out-of-range indices, which the PLY
-  // reader passes through and the later steps would read out of bounds.
-  const aiScene* scene =
-      importer.ReadFile(path, aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_SortByPType);
-  if (scene == nullptr) {
-    std::string why = importer.GetErrorString();
-    throw MeshLoadError(path, "unreadable format (" + (why.empty() ? std::string("assimp gave no reason") : why) + ")");
-  }
-  if (scene->mRootNode == nullptr) throw MeshLoadError(path, "the file holds no scene");
-
-  std::vector<Vec3> vertices;
-  std::vector<Triangle> triangles;
-  std::unordered_map<Vec3, std::uint32_t, PositionHash, PositionEqual> ids;
-  bool nonFinite = false;
-  std::string badIndex;
-  collect(scene, scene->mRootNode, aiMatrix4x4(), vertices, triangles, ids, nonFinite, badIndex);
-  if (nonFinite) throw MeshLoadError(path, "non-finite vertex coordinates (NaN or Inf)");
-  if (!badIndex.empty()) throw MeshLoadError(path, "corrupt file: " + badIndex);
+  const SoupReader reader = readerFor(path);
+  auto [vertices, triangles] = reader != nullptr ? readWithSoupReader(path, reader) : readWithAssimp(path);
   if (triangles.empty()) throw MeshLoadError(path, "no triangles");
 
   std::string name = std::filesystem::path(path).filename().string();

@@ -11,7 +11,7 @@
 namespace clod_haptics {
 
 /** \brief Version of the binary mesh cache format; part of every key and file header. */
-constexpr std::uint32_t kMeshCacheFormatVersion = 1;
+constexpr std::uint32_t kMeshCacheFormatVersion = 2;
 
 /**
  * \brief The key of a loaded mesh: a hash of the source file's bytes and of the load options (scale,

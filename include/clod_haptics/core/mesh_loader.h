@@ -28,9 +28,14 @@ struct MeshLoadOptions {
 double signedVolume(const TriangleMesh& mesh);
 
 /**
- * \brief Loads any format assimp reads (OBJ, STL, PLY, OFF, DAE, ...), triangulated, with the node
- * transforms applied, all meshes of the scene merged and vertices at identical positions joined.
- * \throws MeshLoadError for a missing file, an unreadable format, no triangles or non-finite coordinates.
+ * \brief Loads a triangle mesh: OFF, OBJ, PLY (ASCII and binary) and STL (ASCII and binary) in double
+ * precision, exactly the file's numbers, by strict readers; any other format assimp reads (DAE, ...) through
+ * assimp, in single precision, with a one-line warning on std::clog. Polygons are triangulated (quads as assimp
+ * splits them, larger polygons as a fan), node transforms applied, all meshes merged and vertices at identical
+ * positions joined.
+ * \throws MeshLoadError for a missing file, a file that is not in its format, a header that does not match the
+ * data (counts, sizes), a face index outside the vertices, a coordinate that is not a finite number, or no
+ * triangles; the message names the file, and the line or byte and the problem.
  * \throws InvalidParameter for a scale that is not finite and positive.
  */
 TriangleMesh loadMesh(const std::string& path, const MeshLoadOptions& options = {});
