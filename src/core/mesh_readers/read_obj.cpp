@@ -71,7 +71,7 @@ struct ObjReader {
     // Any other statement (vt, vn, g, o, s, usemtl, mtllib, l, p, ...) carries no surface.
   }
 
-  void read() {
+  PolygonSoup read() {
     do {
       const std::string_view keyword = in.tokenInLine();
       if (!keyword.empty()) readStatement(keyword);
@@ -80,6 +80,7 @@ struct ObjReader {
       throw MeshLoadError(path, atLine(maxIndexLine) + "face " + std::to_string(maxIndexFace) + " uses vertex " +
                                     std::to_string(maxIndex) + " but the file has " +
                                     std::to_string(soup.positions.size()) + " vertices");
+    return std::move(soup);
   }
 };
 
@@ -87,9 +88,7 @@ struct ObjReader {
 
 PolygonSoup readObj(const std::string& path, const std::string& bytes) {
   requireText(path, bytes, "OBJ");
-  ObjReader reader{path, TextScanner(bytes, '#'), {}};
-  reader.read();
-  return std::move(reader.soup);
+  return ObjReader{path, TextScanner(bytes, '#'), {}}.read();
 }
 
 }  // namespace detail

@@ -72,7 +72,7 @@ struct OffReader {
     soup.closePolygon(start);
   }
 
-  void read() {
+  PolygonSoup read() {
     readKeyword();
     std::string_view t = in.tokenInLine();
     if (t == "BINARY") fail("binary OFF is not supported");
@@ -96,6 +96,7 @@ struct OffReader {
     }
     t = nextContentLine();
     if (!t.empty()) fail("unexpected " + quoted(t) + " after the last of the header's " + std::to_string(faces) + " faces");
+    return std::move(soup);
   }
 };
 
@@ -103,10 +104,9 @@ struct OffReader {
 
 PolygonSoup readOff(const std::string& path, const std::string& bytes) {
   requireText(path, bytes, "OFF");
-  OffReader reader{path, TextScanner(bytes, '#'), {}};
-  reader.soup.fileOrder = true;
-  reader.read();
-  return std::move(reader.soup);
+  PolygonSoup soup;
+  soup.fileOrder = true;
+  return OffReader{path, TextScanner(bytes, '#'), std::move(soup)}.read();
 }
 
 }  // namespace detail

@@ -89,13 +89,14 @@ struct AsciiStlReader {
     ++facets;
   }
 
-  void read() {
+  PolygonSoup read() {
     for (std::string_view t = in.token(); !t.empty(); t = in.token()) {
       if (t != "solid") fail("expected 'solid', found " + quoted(t));
       in.nextLine();  // the solid's name
       while (expect("facet", "endsolid") == "facet") readFacet();
       in.nextLine();
     }
+    return std::move(soup);
   }
 };
 
@@ -119,9 +120,7 @@ PolygonSoup readStl(const std::string& path, const std::string& bytes) {
     throw MeshLoadError(path, why);
   }
   requireText(path, bytes, "STL");
-  AsciiStlReader reader{path, TextScanner(bytes, '\0'), {}};
-  reader.read();
-  return std::move(reader.soup);
+  return AsciiStlReader{path, TextScanner(bytes, '\0'), {}}.read();
 }
 
 }  // namespace detail
