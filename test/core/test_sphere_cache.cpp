@@ -384,7 +384,7 @@ TEST(MeshCache, EditedSourceFileIsNeverServedFromTheOldEntry) {
   in.close();
   const std::size_t at = text.find("\nv ");
   ASSERT_NE(at, std::string::npos);
-  text.replace(at, 4, "\nv 0.5");  // the first vertex's x gains a leading 0.5 digit
+  text.replace(at, 3, "\nv 1");  // the first vertex's x, 0.082, becomes 10.082
   std::ofstream(copy, std::ios::trunc) << text;
   const TriangleMesh edited = cache.load(copy, {}, &outcome);
   EXPECT_EQ(outcome.source, CacheSource::Built);
