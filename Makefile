@@ -143,7 +143,8 @@ FUZZ_CXX := clang++-14
 FUZZ_CXXFLAGS := -std=c++17 -g -O1 -fno-omit-frame-pointer -fno-sanitize-recover=undefined \
   -I$(ROOT)/include -isystem /usr/include/eigen3
 FUZZ_TARGETS := fuzz_mesh_load fuzz_query
-FUZZ_CORE_OBJS := $(patsubst $(ROOT)/src/core/%.cpp,$(FUZZ_DIR)/obj/%.o,$(wildcard $(ROOT)/src/core/*.cpp))
+# Every core source, the subfolders' (simd/, mesh_readers/) included.
+FUZZ_CORE_OBJS := $(patsubst $(ROOT)/src/core/%.cpp,$(FUZZ_DIR)/obj/%.o,$(wildcard $(ROOT)/src/core/*.cpp $(ROOT)/src/core/*/*.cpp))
 SAN_WS := $(BUILD)/ws-sanitize
 # Every sanitizer report of every process (test binaries, nodes, the nodelet manager with ASan preloaded) goes
 # to a file of its own in SAN_REPORTS: a report at exit (a leak) or in a child whose output no one reads still
@@ -159,7 +160,7 @@ SAN_ENV := ASAN_OPTIONS=detect_leaks=1:halt_on_error=1:abort_on_error=0:log_path
 deps-fuzz:
 	$(call apt_install,$(APT_FUZZ))
 
-$(FUZZ_DIR)/obj/%.o: $(ROOT)/src/core/%.cpp $(wildcard $(ROOT)/include/clod_haptics/core/*.h)
+$(FUZZ_DIR)/obj/%.o: $(ROOT)/src/core/%.cpp $(wildcard $(ROOT)/include/clod_haptics/core/*.h $(ROOT)/src/core/*.h $(ROOT)/src/core/*/*.h)
 	@mkdir -p $(@D)
 	@$(FUZZ_CXX) $(FUZZ_CXXFLAGS) -fsanitize=fuzzer-no-link,address,undefined -c $< -o $@
 
