@@ -24,15 +24,14 @@ Exit status 1 when a pose went unanswered or was counted lost or skipped, the RS
 (--warmup seconds, at least one full cycle of distances: every level has been built and cached once),
 an unexpected warning or error was logged, no level swap happened, or the launch died.
 
-The RSS bound, 32 MiB of growth after the warm-up. Once every level of the cycle has been loaded, the
-manager holds one level plus, for a moment, the one being swapped in and the one the markers last showed,
-so its memory should stay flat. It does not stay exactly flat: the largest swap (d = 0, 50,000 spheres
-on the mannequin) moves glibc's high-water mark once more when it first meets a new interleaving with
-the marker thread (a 10-minute run: +16.2 MiB between 60 and 90 s, then +0.1 MiB over the last 510 s).
-32 MiB leaves room for one such step and is still exceeded by a leak of about 60 bytes per pose over
-540,000 poses, or of about 180 KiB per reconfigure over 180 reconfigures (a mannequin level is several
-MiB). The report also prints the growth over the second half of the run after the warm-up, where a
-steady leak shows and a one-time step does not.
+The RSS bound: 32 MiB of growth of the RSS floor after the warm-up, the lowest RSS over the last third of the
+samples against the lowest over the first third. Once every level of the cycle has been loaded, the manager holds
+the levels in use plus, for a moment, the one being built (a grid's temporaries), so the RSS rises while a level
+is built and comes back when glibc returns the memory: a 10-minute run on refined_elephant swung between 111 and
+155 MiB and ended at its floor. A leak raises the floor; a build in flight only a peak, which is reported, not
+bounded. The floors of the two thirds are about two thirds of the run apart, so 32 MiB is exceeded by a leak of
+about 90 bytes per pose over 540,000 poses, or of about 90 KiB per reconfigure over 540 reconfigures. The report
+also prints the growth over the second half of the run after the warm-up.
 
   scripts/soak.py [--duration 600] [--mesh FILE --scale S]     # after sourcing devel/setup.bash
   make soak SOAK_SECONDS=600
@@ -438,7 +437,12 @@ class Soak:
         rss = self.rss
         warm = [kib for t, kib in rss if t >= a.warmup]
         rss_warm = warm[0] if warm else None
-        growth_mib = (max(warm) - rss_warm) / 1024.0 if warm else 0.0
+        # A leak raises the floor the RSS comes back to between level builds; a build in flight (a grid's
+        # temporaries) raises only a peak, which glibc returns. So the bound applies to the floor: the lowest RSS
+        # over the last third of the samples after the warm-up against the lowest over the first third.
+        third = max(1, len(warm) // 3)
+        growth_mib = (min(warm[-third:]) - min(warm[:third])) / 1024.0 if warm else 0.0
+        peak_mib = (max(warm) - rss_warm) / 1024.0 if warm else 0.0
         # The second half of the time after the warm-up: a steady leak grows here too, a one-time step may not.
         late = [kib for t, kib in rss if t >= (a.warmup + seconds) / 2.0] if rss else []
         late_mib = (max(late) - late[0]) / 1024.0 if late else 0.0
@@ -455,7 +459,7 @@ class Soak:
         if sent == 0:
             failures.append("no pose sent")
         if warm and growth_mib > a.rss_bound_mib:
-            failures.append("manager RSS grew by %.1f MiB after the warm-up (bound %.1f MiB)" %
+            failures.append("manager RSS floor grew by %.1f MiB after the warm-up (bound %.1f MiB)" %
                             (growth_mib, a.rss_bound_mib))
         if not warm:
             failures.append("no RSS sample after the %.0f s warm-up: run longer than the warm-up" % a.warmup)
@@ -504,10 +508,11 @@ class Soak:
                 len(self.reconfigure_failures)),
             "markers           %d arrays, %.1f MiB" % (self.marker_arrays, self.marker_bytes / 2.0 ** 20),
             "manager RSS       start %.1f MiB, after %.0f s warm-up %s MiB, end %.1f MiB, max %.1f MiB; "
-            "growth after warm-up %.1f MiB (bound %.1f MiB), over the last %.0f s %.1f MiB" % (
+            "floor growth after warm-up %.1f MiB (bound %.1f MiB), peak above the warm-up value %.1f MiB, "
+            "over the last %.0f s %.1f MiB" % (
                 rss[0][1] / 1024.0 if rss else -1, a.warmup,
                 "%.1f" % (rss_warm / 1024.0) if rss_warm else "?", rss[-1][1] / 1024.0 if rss else -1,
-                max(k for _, k in rss) / 1024.0 if rss else -1, growth_mib, a.rss_bound_mib,
+                max(k for _, k in rss) / 1024.0 if rss else -1, growth_mib, a.rss_bound_mib, peak_mib,
                 (seconds - a.warmup) / 2.0, late_mib),
             "detection time us %s" % fmt(percentiles(det_us)),
             "pose->contact us  %s (Python publisher to Python subscriber, includes both)" % fmt(percentiles(rtt_us)),
