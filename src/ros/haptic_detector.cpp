@@ -15,6 +15,7 @@
 #include "clod_haptics/Contact.h"
 #include "clod_haptics/ContactArray.h"
 #include "clod_haptics/DetectorStatus.h"
+#include "clod_haptics/core/clustering.h"
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/mesh_cache.h"
 #include "clod_haptics/core/sphere_cache.h"
@@ -24,7 +25,6 @@
 namespace clod_haptics {
 
 namespace {
-const char* toString(PosePolicy policy) { return policy == PosePolicy::Latest ? "latest" : "all"; }
 
 /** The transform target <- source at stamp, or the latest one when stamp is newer than tf2 knows. */
 geometry_msgs::TransformStamped lookup(const tf2_ros::Buffer& buffer, const std::string& target,
@@ -36,9 +36,6 @@ geometry_msgs::TransformStamped lookup(const tf2_ros::Buffer& buffer, const std:
   }
 }
 
-void requireFiniteNonNegative(double value, const std::string& name) {
-  if (!std::isfinite(value) || value < 0.0) throw InvalidParameter(name + " must be finite and >= 0");
-}
 }  // namespace
 
 HapticDetector::HapticDetector(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh), displayPnh_(pnh) {
@@ -116,8 +113,8 @@ void HapticDetector::readParameters() {
   if (!(p.staticRetry > 0.0)) throw InvalidParameter("~static_retry must be positive");
   if (p.poseQueueSize < 1) throw InvalidParameter("~pose_queue_size must be at least 1");
   if (p.publishQueueSize < 1) throw InvalidParameter("~publish_queue_size must be at least 1");
-  requireFiniteNonNegative(p.gridRadius, "~grid_radius");
-  requireFiniteNonNegative(p.prefetchMargin, "~prefetch_margin");
+  requireNonNegative(p.gridRadius, "~grid_radius");
+  requireNonNegative(p.prefetchMargin, "~prefetch_margin");
   requireClustering(p.clustering, pnh_.resolveName("clustering"));
   std::string mode;
   DetectionMode parsed;

@@ -7,20 +7,18 @@
 
 namespace clod_haptics {
 
-namespace {
-const char* toString(PosePolicy policy) { return policy == PosePolicy::Latest ? "latest" : "all"; }
-}  // namespace
-
 void HapticDetector::onStatusTimer(const ros::SteadyTimerEvent&) {
   // Loss is never silent: warn (at most every 5 s per kind) whenever a counter grew.
   const std::uint64_t lost = lostUpstream_.load(), skipped = skippedStale_.load();
   if (lost > warnedLost_) {
-    ROS_WARN_THROTTLE(5.0, "detector: %lu poses lost before reaching the detector (gaps in the pose stream's "
+    ROS_WARN_THROTTLE(5.0,
+                      "detector: %lu poses lost before reaching the detector (gaps in the pose stream's "
                       "header.seq; %lu in all): a publisher or roscpp queue dropped them",
                       static_cast<unsigned long>(lost - warnedLost_), static_cast<unsigned long>(lost));
   }
   if (skipped > warnedSkipped_) {
-    ROS_WARN_THROTTLE(5.0, "detector: skipped %lu stale poses (pose_policy latest: a newer pose was waiting; %lu "
+    ROS_WARN_THROTTLE(5.0,
+                      "detector: skipped %lu stale poses (pose_policy latest: a newer pose was waiting; %lu "
                       "in all): the detector falls behind the stream",
                       static_cast<unsigned long>(skipped - warnedSkipped_), static_cast<unsigned long>(skipped));
   }

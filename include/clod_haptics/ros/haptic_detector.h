@@ -33,6 +33,9 @@ enum class PosePolicy {
   Latest,  ///< a live device: a pose with a newer one already waiting is skipped (counted), never answered late
 };
 
+/** \brief The ~pose_policy name of a policy: "all" or "latest". */
+inline const char* toString(PosePolicy policy) { return policy == PosePolicy::Latest ? "latest" : "all"; }
+
 /**
  * \brief The detector's fixed parameters (read once by readParameters) with their defaults, the one place
  * the code keeps them; config/detector.yaml documents the same values. The settings dynamic_reconfigure
