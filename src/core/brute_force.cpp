@@ -37,16 +37,21 @@ namespace {
 
 // Both references: the nearest triangle, finished by the shared sign rule; a contact within r, and with
 // anyDepthInside also a centre behind the surface at any depth inside the mesh's bounds.
-ContactResult reference(const TriangleMesh& mesh, const Vec3& p, double r, bool anyDepthInside) {
+// p and the answer's point are in the model frame; the search runs in the mesh's local frame.
+ContactResult reference(const TriangleMesh& mesh, const Vec3& model, double r, bool anyDepthInside) {
   ContactResult out;
-  if (!validPointer(p, r)) return out;
+  if (!validPointer(model, r)) return out;
+  const Vec3 p = mesh.toLocal(model);
   ContactResult found;
   const double best = nearest(mesh, p, found);
   out.trianglesTested = found.trianglesTested;
   if (!std::isfinite(best)) return out;
   found.contact = true;
   finishContact(mesh, p, r, found);
-  if (best <= r * r || (anyDepthInside && found.inside && mesh.bounds().contains(p))) out = found;
+  if (best <= r * r || (anyDepthInside && found.inside && mesh.bounds().contains(p))) {
+    out = found;
+    out.point = mesh.toModel(out.point);
+  }
   return out;
 }
 

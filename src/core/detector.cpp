@@ -159,6 +159,7 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   sphereOfTriangle_ = firstSphereOfTriangles(s, m.size());
   triangleIndex_ = m.triangles.data();
   vertices_ = m.vertices.data();
+  origin_ = m.origin;
   normals_ = m.normals.data();
 
   if (fastLevel_ != FastLevel::Flat) {
@@ -436,12 +437,15 @@ inline void ClodDetector::answer(const Vec3& p, double r, const Best& best, Cont
   }
 }
 
-void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
+void ClodDetector::query(const Vec3& model, double r, DetectionMode mode, ContactResult& out,
                          QueryCache* cache) const noexcept {
   out = ContactResult{};
-  if (!validPointer(p, r)) return;
+  if (!validPointer(model, r)) return;
+  // Everything below runs in the mesh's local frame (exact for a mesh far from zero: chooseLocalOrigin).
+  const Vec3 p = model - origin_;
   if (mode == DetectionMode::Spheres) {  // coarsest answer: the nearest sphere surface within r
     querySpheres(p, r, out, cache);
+    if (out.contact) out.point += origin_;
     return;
   }
   // The nearest triangle within r (the tie rule of bruteForceQuery), through the configured levels: the grid
@@ -453,10 +457,12 @@ void ClodDetector::query(const Vec3& p, double r, DetectionMode mode, ContactRes
   // there every triangle is within the box's diagonal, where the search ends.
   if (!best.found && cache != nullptr && cache->lastInside) searchDeep(p, r, mode, best, cache);
   answer(p, r, best, out, cache);
+  if (out.contact) out.point += origin_;
 }
 
-std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcept {
-  if (!validPointer(p, r)) return 0;
+std::uint32_t ClodDetector::fastLevelHits(const Vec3& model, double r) const noexcept {
+  if (!validPointer(model, r)) return 0;
+  const Vec3 p = model - origin_;
   if (!grid_.empty() && r <= grid_.radius()) {
     const std::uint64_t key = grid_.keyOf(p);
     const CellGrid::CellRef* ref = grid_.find(key);
@@ -469,9 +475,10 @@ std::uint32_t ClodDetector::fastLevelHits(const Vec3& p, double r) const noexcep
   return hits;
 }
 
-void ClodDetector::hitSpheres(const Vec3& p, double r, std::vector<std::uint32_t>& out) const {
+void ClodDetector::hitSpheres(const Vec3& model, double r, std::vector<std::uint32_t>& out) const {
   out.clear();
-  if (!validPointer(p, r)) return;
+  if (!validPointer(model, r)) return;
+  const Vec3 p = model - origin_;
   forEachHitSphere(p.x(), p.y(), p.z(), r, false, [&](std::uint32_t i) { out.push_back(i); });
   std::sort(out.begin(), out.end());
 }

@@ -16,6 +16,16 @@ Eigen::AlignedBox3d TriangleMesh::bounds() const {
   return box;
 }
 
+Vec3 chooseLocalOrigin(const Eigen::AlignedBox3d& box) {
+  Vec3 origin = Vec3::Zero();
+  if (box.isEmpty()) return origin;
+  const double side = box.sizes().maxCoeff();
+  const Vec3 centre = box.center();
+  for (int k = 0; k < 3; ++k)
+    if (std::abs(centre[k]) > 4.0 * side) origin[k] = centre[k];
+  return origin;
+}
+
 Vec3 faceNormal(const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 e0 = b - a, e1 = c - a, e2 = c - b;
   const Vec3 n = e0.cross(e1);
@@ -83,7 +93,9 @@ void computeAdjacency(TriangleMesh& mesh) {
     }
 }
 
-TriangleMesh makeMesh(std::vector<Vec3> vertices, std::vector<Triangle> triangles, std::string name) {
+namespace {
+
+TriangleMesh validatedMesh(std::vector<Vec3> vertices, std::vector<Triangle> triangles, std::string name) {
   if (triangles.empty()) throw InvalidParameter("mesh '" + name + "' has no triangles");
   for (std::size_t i = 0; i < vertices.size(); ++i)
     if (!vertices[i].allFinite())
@@ -97,10 +109,33 @@ TriangleMesh makeMesh(std::vector<Vec3> vertices, std::vector<Triangle> triangle
   mesh.name = std::move(name);
   mesh.vertices = std::move(vertices);
   mesh.triangles = std::move(triangles);
+  return mesh;
+}
+
+void finishMesh(TriangleMesh& mesh) {
   mesh.normals.resize(mesh.triangles.size());
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
     mesh.normals[t] = faceNormal(mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2));
   computeAdjacency(mesh);
+}
+
+}  // namespace
+
+TriangleMesh makeMesh(std::vector<Vec3> vertices, std::vector<Triangle> triangles, std::string name) {
+  TriangleMesh mesh = validatedMesh(std::move(vertices), std::move(triangles), std::move(name));
+  mesh.origin = chooseLocalOrigin(mesh.bounds());
+  if (!mesh.origin.isZero(0.0))
+    for (Vec3& v : mesh.vertices) v -= mesh.origin;  // exact: see chooseLocalOrigin
+  finishMesh(mesh);
+  return mesh;
+}
+
+TriangleMesh makeLocalMesh(std::vector<Vec3> localVertices, std::vector<Triangle> triangles, std::string name,
+                           const Vec3& origin) {
+  if (!origin.allFinite()) throw InvalidParameter("mesh '" + name + "': the local origin is not finite");
+  TriangleMesh mesh = validatedMesh(std::move(localVertices), std::move(triangles), std::move(name));
+  mesh.origin = origin;
+  finishMesh(mesh);
   return mesh;
 }
 

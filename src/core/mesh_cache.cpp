@@ -26,7 +26,8 @@ void checkMesh(const ByteReader& r, const TriangleMesh& mesh) {
       if (v >= mesh.vertices.size()) r.fail("a vertex index is out of range");
   for (const Vec3& n : mesh.normals)
     if (!n.allFinite()) r.fail("a normal is not finite");
-  if (!std::isfinite(mesh.scale) || !mesh.offset.allFinite()) r.fail("scale or offset not finite");
+  if (!std::isfinite(mesh.scale) || !mesh.offset.allFinite() || !mesh.origin.allFinite())
+    r.fail("scale, offset or origin not finite");
 }
 
 }  // namespace
@@ -49,12 +50,13 @@ void writeMeshBinary(const TriangleMesh& mesh, std::uint64_t sourceKey, const st
     throw FormatError("cannot write mesh cache file '" + path + "': normals do not match the triangles");
   }
   detail::ByteWriter w(kMagic, kMeshCacheFormatVersion,
-                       64 + mesh.vertices.size() * sizeof(Vec3) +
+                       88 + mesh.vertices.size() * sizeof(Vec3) +
                            mesh.triangles.size() * (sizeof(Triangle) + sizeof(Vec3)) + mesh.name.size());
   w.put(static_cast<std::uint32_t>(mesh.flipped));
   w.put(sourceKey);
   w.put(mesh.scale);
   w.append(mesh.offset.data(), sizeof(Vec3));
+  w.append(mesh.origin.data(), sizeof(Vec3));
   w.put(static_cast<std::uint64_t>(mesh.vertices.size()));
   w.put(static_cast<std::uint64_t>(mesh.triangles.size()));
   w.put(static_cast<std::uint64_t>(mesh.name.size()));
@@ -76,6 +78,7 @@ TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey) {
   mesh.flipped = flipped != 0;
   mesh.scale = r.get<double>();
   r.read(mesh.offset.data(), sizeof(Vec3));
+  r.read(mesh.origin.data(), sizeof(Vec3));
   const auto nv = r.get<std::uint64_t>();
   const auto nt = r.get<std::uint64_t>();
   const auto nameLength = r.get<std::uint64_t>();

@@ -126,29 +126,63 @@ double signedVolume(const TriangleMesh& mesh) {
   return v / 6.0;
 }
 
-void transformMesh(TriangleMesh& mesh, const MeshLoadOptions& options) {
+namespace {
+
+// Scales or normalises the file's positions into the mesh's local frame, in place; returns the local origin
+// (model = local + origin) and records the transform in scale and offset (model = file * scale + offset). A
+// mesh far from zero (chooseLocalOrigin of the file's bounds, o) gets the origin o * scale, and each local
+// coordinate is file * scale - origin rounded once: the shape and its place keep the precision of a mesh at
+// zero. Normalising puts the mesh in the unit cube (origin zero), centred from exact differences to o.
+Vec3 transformVertices(std::vector<Vec3>& vertices, const std::vector<Triangle>& triangles,
+                       const MeshLoadOptions& options, const std::string& name, double& scale, Vec3& offset) {
+  Eigen::AlignedBox3d box;
+  for (const Triangle& t : triangles)
+    for (std::uint32_t v : t) box.extend(vertices[v]);
+  const Vec3 o = chooseLocalOrigin(box);
+  Vec3 origin = Vec3::Zero();
   if (options.normalize) {
-    const Eigen::AlignedBox3d box = mesh.bounds();
     const double extent = box.sizes().maxCoeff();
     if (!(extent > 0.0) || !std::isfinite(extent))
-      throw InvalidParameter("mesh '" + mesh.name + "' has zero extent and cannot be normalised");
+      throw InvalidParameter("mesh '" + name + "' has zero extent and cannot be normalised");
     const double s = 1.0 / extent;
-    const Vec3 offset = Vec3::Constant(0.5) - box.center() * s;
-    for (Vec3& v : mesh.vertices) v = v * s + offset;
-    mesh.scale = s;
-    mesh.offset = offset;
+    // The centre relative to o from the exact differences (box.center() would round (min + max) / 2 at the
+    // magnitude of the coordinates: 1e-10 off centre at 1e6).
+    const Vec3 centre = ((box.min() - o) + (box.max() - o)) / 2.0;
+    const Vec3 shift = Vec3::Constant(0.5) - centre * s;
+    for (Vec3& v : vertices) v = (v - o) * s + shift;
+    scale = s;
+    offset = Vec3::Constant(0.5) - box.center() * s;
   } else {
     if (!(options.scale > 0.0) || !std::isfinite(options.scale))
       throw InvalidParameter("scale must be finite and positive, got " + std::to_string(options.scale));
-    if (options.scale != 1.0)
-      for (Vec3& v : mesh.vertices) v *= options.scale;
-    mesh.scale = options.scale;
-    mesh.offset.setZero();
+    // local = v * scale - origin with one rounding (fma keeps the product exact): the model frame's vertex,
+    // the file's number times the scale, is local + origin to a unit in the last place of the local value.
+    origin = o * options.scale;
+    for (Vec3& v : vertices)
+      for (int k = 0; k < 3; ++k) v[k] = std::fma(v[k], options.scale, -origin[k]);
+    scale = options.scale;
+    offset.setZero();
   }
-  for (const Vec3& v : mesh.vertices)
-    if (!v.allFinite()) throw InvalidParameter("mesh '" + mesh.name + "': scaling overflowed to a non-finite value");
-  for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
-    mesh.normals[t] = faceNormal(mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2));
+  for (const Vec3& v : vertices)
+    if (!v.allFinite()) throw InvalidParameter("mesh '" + name + "': scaling overflowed to a non-finite value");
+  if (!origin.allFinite()) throw InvalidParameter("mesh '" + name + "': scaling overflowed to a non-finite value");
+  return origin;
+}
+
+}  // namespace
+
+void transformMesh(TriangleMesh& mesh, const MeshLoadOptions& options) {
+  std::vector<Vec3> model = mesh.vertices;
+  for (Vec3& v : model) v = mesh.toModel(v);
+  double scale = 1.0;
+  Vec3 offset = Vec3::Zero();
+  const Vec3 origin = transformVertices(model, mesh.triangles, options, mesh.name, scale, offset);
+  TriangleMesh moved = makeLocalMesh(std::move(model), mesh.triangles, mesh.name, origin);
+  mesh.vertices = std::move(moved.vertices);
+  mesh.origin = moved.origin;
+  mesh.normals = std::move(moved.normals);
+  mesh.scale = scale;
+  mesh.offset = offset;
 }
 
 TriangleMesh loadMesh(const std::string& path, const MeshLoadOptions& options) {
@@ -164,8 +198,12 @@ TriangleMesh loadMesh(const std::string& path, const MeshLoadOptions& options) {
   if (triangles.empty()) throw MeshLoadError(path, "no triangles");
 
   std::string name = std::filesystem::path(path).filename().string();
-  TriangleMesh mesh = makeMesh(std::move(vertices), std::move(triangles), name);
-  transformMesh(mesh, options);
+  double scale = 1.0;
+  Vec3 offset = Vec3::Zero();
+  const Vec3 origin = transformVertices(vertices, triangles, options, name, scale, offset);
+  TriangleMesh mesh = makeLocalMesh(std::move(vertices), std::move(triangles), name, origin);
+  mesh.scale = scale;
+  mesh.offset = offset;
   if (options.orientOutward && signedVolume(mesh) < 0.0) {
     for (Triangle& t : mesh.triangles) std::swap(t[1], t[2]);
     for (Vec3& n : mesh.normals) n = -n;

@@ -35,14 +35,14 @@ std::vector<Vec3> nearSurfaceProbes(const TriangleMesh& mesh, std::size_t count,
     }
     const Vec3 point = mesh.vertex(t, 0) + u * (mesh.vertex(t, 1) - mesh.vertex(t, 0)) +
                        v * (mesh.vertex(t, 2) - mesh.vertex(t, 0));
-    probes.push_back(point + offset(rng) * mesh.normals[t]);
+    probes.push_back(mesh.toModel(point + offset(rng) * mesh.normals[t]));
   }
   return probes;
 }
 
 std::vector<Vec3> uniformProbes(const TriangleMesh& mesh, std::size_t count, double margin, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
-  const Eigen::AlignedBox3d box = mesh.bounds();
+  const Eigen::AlignedBox3d box = mesh.modelBounds();
   const Vec3 lo = box.min() - Vec3::Constant(margin), size = box.sizes() + Vec3::Constant(2 * margin);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::vector<Vec3> probes;

@@ -39,14 +39,14 @@ std::uint32_t SceneDetector::addObject(std::string name, std::shared_ptr<const T
   double radius2 = 0.0;
   for (const Triangle& t : object.mesh->triangles)
     for (std::uint32_t v : t) radius2 = std::max(radius2, (object.mesh->vertices[v] - object.localCentre).squaredNorm());
+  // A little slack so rounding in the transform never rejects a touching pointer.
+  object.radius = std::sqrt(radius2) * (1.0 + 1e-9) + 1e-12;
   const auto index = static_cast<std::uint32_t>(objects_.size());
   objects_.push_back(std::move(object));
-  // A little slack so rounding in the transform never rejects a touching pointer.
-  const double radius = std::sqrt(radius2) * (1.0 + 1e-9) + 1e-12;
   boundX_.push_back(0.0);
   boundY_.push_back(0.0);
   boundZ_.push_back(0.0);
-  boundR_.push_back(radius);
+  boundR_.push_back(0.0);
   sphereGrow_.push_back(0.0);
   active_.push_back(1);
   setPose(index, worldFromObject);
@@ -64,8 +64,11 @@ void SceneDetector::setPose(std::uint32_t i, const Eigen::Isometry3d& worldFromO
 
 void SceneDetector::updateBound(std::uint32_t i) {
   const Object& object = objects_[i];
-  const Vec3 c = object.worldFromObject * object.localCentre;
+  const Vec3 c = object.worldFromObject * object.mesh->toModel(object.localCentre);
   const double nan = std::numeric_limits<double>::quiet_NaN();
+  // World coordinates far from zero round at their own magnitude (the centre here, the pointer's offset
+  // from it in the test): slack of a few units in the last place of the largest coordinate.
+  boundR_[i] = object.radius + 8.0 * std::numeric_limits<double>::epsilon() * c.cwiseAbs().maxCoeff();
   boundX_[i] = active_[i] ? c.x() : nan;
   boundY_[i] = active_[i] ? c.y() : nan;
   boundZ_[i] = active_[i] ? c.z() : nan;
@@ -89,7 +92,7 @@ void SceneDetector::measureSpheres(std::uint32_t i) {
     const ClodSphereSet& set = *object.detector->spheres();
     for (std::size_t s = 0; s < set.size(); ++s) {
       const double r = set.radii[s];
-      sphereGrow = std::max(sphereGrow, (set.centres[s] - object.localCentre).norm() + r - boundR_[i]);
+      sphereGrow = std::max(sphereGrow, (set.centres[s] - object.localCentre).norm() + r - object.radius);
       boxGrow = std::max(boxGrow, object.localBox.exteriorDistance(set.centres[s]) + r);
     }
   }
@@ -137,7 +140,7 @@ void SceneDetector::query(const Vec3& p, double r, DetectionMode mode, SceneCont
       const Object& object = objects_[i];
       const Vec3 local = object.objectFromWorld * p;
       // The box is tighter than the sphere for long or flat objects; still no sphere touched.
-      if (object.localBox.exteriorDistance(local) > r + (spheres ? object.boxGrow : 0.0)) {
+      if (object.localBox.exteriorDistance(object.mesh->toLocal(local)) > r + (spheres ? object.boxGrow : 0.0)) {
         if (caches) caches[i].lastInside = false;
         continue;
       }

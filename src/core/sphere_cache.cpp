@@ -57,6 +57,7 @@ ArrayCounts readHeader(ByteReader& r, std::uint64_t meshHash, double distance, c
            std::to_string(distance));
   }
   set.scale = r.get<double>("the scale");
+  set.origin = mesh.origin;  // the hash covers the local vertices; the origin is the mesh's
   const auto meshTriangles = r.get<std::uint64_t>("the triangle count");
   if (meshTriangles != mesh.size()) r.fail("written for a mesh of " + std::to_string(meshTriangles) + " triangles");
   set.stats.triangles = meshTriangles;

@@ -277,6 +277,7 @@ ClodSphereSet ClodBuilder::build(double d) const {
   ClodSphereSet set;
   set.meshName = mesh.name;
   set.scale = mesh.scale;
+  set.origin = mesh.origin;
   set.distance = d;
   SphereFitter fitter(mesh, centres_, wrapped_, labels, k, set);
   if (k == centres_.size())
@@ -295,6 +296,7 @@ std::string fitProblem(const TriangleMesh& mesh, const ClodSphereSet& set, doubl
   if (set.offsets.front() != 0 || set.offsets.back() != set.triangles.size()) {
     return "offsets do not span the triangle list";
   }
+  if (set.origin != mesh.origin) return "built for a mesh with another local origin (is it the same mesh and scale?)";
   const double tolerance = relativeTolerance * std::max(mesh.diagonal(), 1e-300);
   std::vector<char> covered(mesh.size(), 0);
   for (std::size_t i = 0; i < n; ++i) {

@@ -12,9 +12,10 @@ namespace clod_haptics {
 
 void writeSphereSetYaml(const ClodSphereSet& set, std::ostream& out) {
   out << std::setprecision(17);
-  out << "format: clod_haptics/sphere_set/1\n";
+  out << "format: clod_haptics/sphere_set/2\n";
   out << "mesh: \"" << set.meshName << "\"\n";
   out << "scale: " << set.scale << "\n";
+  out << "origin: [" << set.origin.x() << ", " << set.origin.y() << ", " << set.origin.z() << "]\n";
   out << "clustering_distance: " << set.distance << "\n";
   const BuildStats& s = set.stats;
   out << "stats: {triangles: " << s.triangles << ", centres: " << s.centres << ", spheres: " << s.spheres
@@ -70,7 +71,10 @@ ClodSphereSet readSphereSetYaml(const std::string& path) {
     ++lineNo;
   };
   next();
-  if (line != "format: clod_haptics/sphere_set/1") throw FormatError(path + ": not a clod_haptics sphere set");
+  // Version 1 had no origin line: its centres are in the model frame, a zero origin.
+  const bool hasOrigin = line == "format: clod_haptics/sphere_set/2";
+  if (!hasOrigin && line != "format: clod_haptics/sphere_set/1")
+    throw FormatError(path + ": not a clod_haptics sphere set");
   next();
   std::string mesh = afterKey(line, "mesh", lineNo);
   if (mesh.size() >= 2 && mesh.front() == '"' && mesh.back() == '"') mesh = mesh.substr(1, mesh.size() - 2);
@@ -78,6 +82,15 @@ ClodSphereSet readSphereSetYaml(const std::string& path) {
   next();
   set.scale = toDouble(afterKey(line, "scale", lineNo), lineNo);
   next();
+  if (hasOrigin) {
+    const std::string origin = afterKey(line, "origin", lineNo);
+    int used = 0;
+    if (std::sscanf(origin.c_str(), "[%lf, %lf, %lf]%n", &set.origin.x(), &set.origin.y(), &set.origin.z(), &used) !=
+            3 ||
+        used != static_cast<int>(origin.size()) || !set.origin.allFinite())
+      throw FormatError(path + ": line " + std::to_string(lineNo) + ": malformed origin");
+    next();
+  }
   set.distance = toDouble(afterKey(line, "clustering_distance", lineNo), lineNo);
   next();
   const std::string stats = afterKey(line, "stats", lineNo);

@@ -30,6 +30,7 @@ void toMsg(const ClodSphereSet& set, const std_msgs::Header& header, SphereSet& 
   msg.mesh_name = set.meshName;
   msg.scale = set.scale;
   msg.distance = set.distance;
+  msg.origin = toPoint(set.origin);
   msg.spheres.resize(set.size());
   for (std::size_t i = 0; i < set.size(); ++i) {
     Sphere& s = msg.spheres[i];
@@ -54,6 +55,8 @@ ClodSphereSet fromMsg(const SphereSet& msg) {
   set.meshName = msg.mesh_name;
   set.scale = msg.scale;
   set.distance = msg.distance;
+  set.origin = fromPoint(msg.origin);
+  if (!set.origin.allFinite()) throw FormatError("sphere set message: the origin is not finite");
   set.centres.reserve(msg.spheres.size());
   set.radii.reserve(msg.spheres.size());
   set.offsets.assign(1, 0);

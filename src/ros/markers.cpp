@@ -41,7 +41,7 @@ visualization_msgs::Marker meshMarker(const TriangleMesh& mesh, const std_msgs::
   m.color = color;
   m.points.reserve(mesh.size() * 3);
   for (std::size_t t = 0; t < mesh.size(); ++t) {
-    for (int k = 0; k < 3; ++k) m.points.push_back(toPoint(mesh.vertex(t, k)));
+    for (int k = 0; k < 3; ++k) m.points.push_back(toPoint(mesh.toModel(mesh.vertex(t, k))));
   }
   return m;
 }
@@ -71,7 +71,7 @@ std::size_t appendSphereMarkers(const ClodSphereSet& set, const std::vector<std:
     m.scale.x = m.scale.y = m.scale.z = 2.0 * radius;
     m.color = color;
     m.points.reserve(b - a);
-    for (std::size_t k = a; k < b; ++k) m.points.push_back(toPoint(set.centres[byClass[k].second]));
+    for (std::size_t k = a; k < b; ++k) m.points.push_back(toPoint(set.centres[byClass[k].second] + set.origin));
     out.markers.push_back(std::move(m));
     ++written;
     a = b;

@@ -72,7 +72,8 @@ MeshLoadOptions loadOptions(const Args& args) {
 void checkMeshSize(const TriangleMesh& mesh, const Args& args) {
   double largest = 0.0;
   Vec3 low = Vec3::Constant(INFINITY), high = Vec3::Constant(-INFINITY);
-  for (const Vec3& v : mesh.vertices) {
+  for (const Vec3& local : mesh.vertices) {
+    const Vec3 v = mesh.toModel(local);
     largest = std::max(largest, v.cwiseAbs().maxCoeff());
     low = low.cwiseMin(v);
     high = high.cwiseMax(v);

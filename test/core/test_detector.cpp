@@ -90,7 +90,8 @@ std::vector<ContactResult> referenceQueries(const TriangleMesh& mesh, const std:
         }
         triangles.push_back(tri);
       }
-      const TriangleMesh sub = makeMesh(std::move(vertices), std::move(triangles), "cell");
+      // The whole mesh's local frame: the same arithmetic as the full brute force, bit for bit.
+      const TriangleMesh sub = makeLocalMesh(std::move(vertices), std::move(triangles), "cell", mesh.origin);
       for (std::size_t i : groups[g]->second) {
         out[i] = bruteForceQuery(sub, probes[i], R);
         if (out[i].contact) out[i].triangle = std::int32_t(tris[std::size_t(out[i].triangle)]);

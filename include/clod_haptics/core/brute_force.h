@@ -9,7 +9,7 @@ namespace clod_haptics {
  * \brief The reference answer: the closest point over all triangles, in double precision, and a
  * contact when its distance is at most r. Ties go to the lowest triangle index. O(n) per query;
  * tests and benchmarks use it as ground truth. Side, depth and normal by finishContact (the sign rule
- * the detector shares).
+ * the detector shares). p and the answer's point are in the model frame (mesh.origin added back).
  */
 ContactResult bruteForceQuery(const TriangleMesh& mesh, const Vec3& p, double r);
 

@@ -64,7 +64,8 @@ class ClodDetector {
                FastLevel fastLevel = FastLevel::Grid, double gridRadius = 0.0);
 
   /**
-   * \brief Answers whether the pointer (centre p, radius r) touches the mesh, and where.
+   * \brief Answers whether the pointer (centre p, radius r) touches the mesh, and where. p and the contact
+   * point are in the model frame (TriangleMesh::origin added back); the search runs in the mesh's local frame.
    * A non-finite p or r, a negative r or one above kMaxRadius answers no contact. cache (optional) carries temporal
    * coherence between the queries of one stream.
    *
@@ -147,6 +148,7 @@ class ClodDetector {
   const Triangle* triangleIndex_ = nullptr;  // the mesh's arrays (kept alive by mesh_)
   const Vec3* vertices_ = nullptr;
   const Vec3* normals_ = nullptr;
+  Vec3 origin_ = Vec3::Zero();  // the mesh's local origin: p - origin_ in, point + origin_ out
 };
 
 }  // namespace clod_haptics

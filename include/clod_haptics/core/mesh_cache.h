@@ -10,8 +10,11 @@
 
 namespace clod_haptics {
 
-/** \brief Version of the binary mesh cache format; part of every key and file header. */
-constexpr std::uint32_t kMeshCacheFormatVersion = 2;
+/**
+ * \brief Version of the binary mesh cache format; part of every key and file header. 2: vertices read in
+ * double by the strict readers; 3: vertices relative to the mesh's local origin, which is stored.
+ */
+constexpr std::uint32_t kMeshCacheFormatVersion = 3;
 
 /**
  * \brief The key of a loaded mesh: a hash of the source file's bytes and of the load options (scale,

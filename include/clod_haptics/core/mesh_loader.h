@@ -32,7 +32,10 @@ double signedVolume(const TriangleMesh& mesh);
  * precision, exactly the file's numbers, by strict readers; any other format assimp reads (DAE, ...) through
  * assimp, in single precision, with a one-line warning on std::clog. Polygons are triangulated (quads as assimp
  * splits them, larger polygons as a fan), node transforms applied, all meshes merged and vertices at identical
- * positions joined.
+ * positions joined. The model frame is the file's frame times options.scale (or the unit cube when
+ * normalising); a mesh far from its frame's zero is stored relative to its centre (TriangleMesh::origin,
+ * chooseLocalOrigin), subtracted from the file's numbers before scaling, so it keeps the precision of a mesh
+ * at zero: at scale 1, local + origin gives back the file's numbers exactly.
  * \throws MeshLoadError for a missing file, a file that is not in its format, a header that does not match the
  * data (counts, sizes), a face index outside the vertices, a coordinate that is not a finite number, or no
  * triangles; the message names the file, and the line or byte and the problem.

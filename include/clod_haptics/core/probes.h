@@ -10,6 +10,7 @@ namespace clod_haptics {
 /**
  * \brief Points near the surface: area-weighted uniform samples on the triangles, pushed along the
  * face normal by an offset uniform in [-maxOffset, maxOffset] (both sides). Deterministic for a seed.
+ * Probes of both functions are in the model frame (TriangleMesh::origin added), as queries take them.
  */
 std::vector<Vec3> nearSurfaceProbes(const TriangleMesh& mesh, std::size_t count, double maxOffset, std::uint64_t seed);
 

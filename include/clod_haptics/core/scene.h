@@ -88,7 +88,9 @@ class SceneDetector {
   /** \brief Whether object i takes part in queries. */
   bool active(std::uint32_t i) const { return active_[i] != 0; }
   /** \brief Centre of object i's bounding sphere in the world frame. */
-  Vec3 boundCentre(std::uint32_t i) const { return objects_[i].worldFromObject * objects_[i].localCentre; }
+  Vec3 boundCentre(std::uint32_t i) const {
+    return objects_[i].worldFromObject * objects_[i].mesh->toModel(objects_[i].localCentre);
+  }
   /** \brief Radius of object i's bounding sphere. */
   double boundRadius(std::uint32_t i) const { return boundR_[i]; }
 
@@ -99,8 +101,11 @@ class SceneDetector {
     std::shared_ptr<const ClodDetector> detector;
     Eigen::Isometry3d worldFromObject = Eigen::Isometry3d::Identity();
     Eigen::Isometry3d objectFromWorld = Eigen::Isometry3d::Identity();
-    Vec3 localCentre = Vec3::Zero();             ///< bounding-sphere centre in the mesh frame
-    Eigen::AlignedBox3d localBox;                ///< mesh bounds in the mesh frame (second, tighter test)
+    // Both in the mesh's local frame (its vertices' frame, TriangleMesh::origin away from the object frame),
+    // where they and the spheres are exact for an object far from zero.
+    Vec3 localCentre = Vec3::Zero();             ///< bounding-sphere centre
+    Eigen::AlignedBox3d localBox;                ///< mesh bounds (second, tighter test)
+    double radius = 0.0;                         ///< bounding-sphere radius, with its slack
     double boxGrow = 0.0;                        ///< how far the level's spheres reach beyond localBox
     EIGEN_MAKE_ALIGNED_OPERATOR_NEW
   };

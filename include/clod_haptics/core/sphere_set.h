@@ -35,6 +35,9 @@ struct ClodSphereSet {
   std::string meshName;
   double scale = 1.0;       ///< the mesh's scale, for the file format
   double distance = 0.0;    ///< clustering distance d
+  /// The mesh's local origin (TriangleMesh::origin): centres are relative to it, as the mesh's vertices are;
+  /// centres[i] + origin is sphere i's centre in the model frame.
+  Vec3 origin = Vec3::Zero();
   std::vector<Vec3> centres;
   std::vector<double> radii;
   std::vector<std::uint32_t> offsets{0};
