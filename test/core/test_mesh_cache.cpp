@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include <unistd.h>
@@ -34,6 +35,31 @@ TEST(MeshCacheAdjacency, ReadBackEqualsTheLoadedMesh) {
   EXPECT_EQ(read.cornerTriangles, loaded.cornerTriangles);
   EXPECT_EQ(read.cornerAngles, loaded.cornerAngles);
   EXPECT_FALSE(read.neighbours.empty());
+}
+
+// A mesh far from zero comes back from the cache with its local origin: the same model coordinates, bit for bit.
+TEST(MeshCacheOrigin, FarMeshReadsBackWithItsOrigin) {
+  const std::string dir = (std::filesystem::temp_directory_path() / ("clod_mesh_cache_origin_" + std::to_string(::getpid())))
+                              .string();
+  std::filesystem::create_directories(dir);
+  const std::string source = dir + "/far.off";
+  {
+    std::ofstream out(source);
+    out.precision(17);
+    out << "OFF\n4 4 0\n";
+    for (const char* v : {"1000000.1 2e5 3", "1000001.3 2e5 3", "1000000.1 200001.7 3", "1000000.1 2e5 4.1"}) out << v << "\n";
+    out << "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+  }
+  const TriangleMesh loaded = loadMesh(source);
+  ASSERT_NE(loaded.origin.x(), 0.0);
+  const std::uint64_t key = meshSourceKey(source, MeshLoadOptions());
+  writeMeshBinary(loaded, key, dir + "/far.bin");
+  const TriangleMesh read = readMeshBinary(dir + "/far.bin", key);
+  std::filesystem::remove_all(dir);
+  EXPECT_EQ(read.origin, loaded.origin);
+  ASSERT_EQ(read.vertices.size(), loaded.vertices.size());
+  for (std::size_t v = 0; v < read.vertices.size(); ++v) EXPECT_EQ(read.toModel(read.vertices[v]), loaded.toModel(loaded.vertices[v]));
+  EXPECT_EQ(loaded.toModel(loaded.vertices[0]), Vec3(1000000.1, 2e5, 3));
 }
 
 }  // namespace

@@ -365,38 +365,56 @@ TEST_F(SceneTest, QueryAllocatesNothing) {
 
 // A scene of one object answers what its detector answers, in every mode: the scene-level bounds never reject a
 // pointer the detector would find in contact, also in spheres mode where the CLOD spheres reach beyond the mesh.
+// At the origin and 1e6 away (a mesh in world coordinates, kept relative to its local origin): the scene's bounds
+// never reject what the object's detector answers, and exact answers equal the brute force.
 TEST(SceneOfOne, AnswersWhatItsDetectorAnswersInEveryMode) {
-  auto mesh = std::make_shared<const TriangleMesh>(loadMesh(std::string(CLOD_PACKAGE_DATA_DIR) + "/meshes/torus.obj"));
-  auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.01));  // coarse: large spheres
-  auto level = std::make_shared<const ClodDetector>(mesh, set, FastLevel::Hierarchy);
-  SceneDetector scene;
-  scene.addObject("torus", mesh, level, Eigen::Isometry3d::Identity());
-  std::mt19937 rng(11);
-  const Eigen::AlignedBox3d box = mesh->bounds();
-  std::uniform_real_distribution<double> ux(box.min().x() - 0.02, box.max().x() + 0.02),
-      uy(box.min().y() - 0.02, box.max().y() + 0.02), uz(box.min().z() - 0.02, box.max().z() + 0.02);
-  std::size_t sphereContacts = 0, outsideMeshBox = 0;
-  SceneContact contacts[1];
-  for (DetectionMode mode : {DetectionMode::Exact, DetectionMode::Paper, DetectionMode::Spheres}) {
-    for (int k = 0; k < 4000; ++k) {
-      const Vec3 p(ux(rng), uy(rng), uz(rng));
-      const double r = 0.003;
-      ContactResult expected;
-      level->query(p, r, mode, expected);
-      SceneQueryResult out;
-      scene.query(p, r, mode, contacts, 1, out);
-      ASSERT_EQ(out.contact, expected.contact) << toString(mode) << " probe " << p.transpose();
-      if (!expected.contact) continue;
-      EXPECT_EQ(contacts[0].local.point, expected.point);
-      EXPECT_EQ(contacts[0].local.depth, expected.depth);
-      if (mode == DetectionMode::Spheres) {
-        ++sphereContacts;
-        outsideMeshBox += box.exteriorDistance(p) > r;
+  const TriangleMesh torus = loadMesh(std::string(CLOD_PACKAGE_DATA_DIR) + "/meshes/torus.obj");
+  for (const Vec3& offset : {Vec3::Zero().eval(), Vec3(1e6, -2e5, 3e4)}) {
+    SCOPED_TRACE("offset " + std::to_string(offset.x()));
+    std::vector<Vec3> moved;
+    for (const Vec3& v : torus.vertices) moved.push_back(torus.toModel(v) + offset);
+    auto mesh = std::make_shared<const TriangleMesh>(makeMesh(moved, torus.triangles, "torus"));
+    auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.01));  // coarse: large spheres
+    auto level = std::make_shared<const ClodDetector>(mesh, set, FastLevel::Hierarchy);
+    SceneDetector scene;
+    scene.addObject("torus", mesh, level, Eigen::Isometry3d::Identity());
+    std::mt19937 rng(11);
+    const Eigen::AlignedBox3d box = mesh->modelBounds();
+    std::uniform_real_distribution<double> ux(box.min().x() - 0.02, box.max().x() + 0.02),
+        uy(box.min().y() - 0.02, box.max().y() + 0.02), uz(box.min().z() - 0.02, box.max().z() + 0.02);
+    std::size_t sphereContacts = 0, outsideMeshBox = 0, exactContacts = 0;
+    SceneContact contacts[1];
+    for (DetectionMode mode : {DetectionMode::Exact, DetectionMode::Paper, DetectionMode::Spheres}) {
+      for (int k = 0; k < 4000; ++k) {
+        const Vec3 p(ux(rng), uy(rng), uz(rng));
+        const double r = 0.003;
+        ContactResult expected;
+        level->query(p, r, mode, expected);
+        SceneQueryResult out;
+        scene.query(p, r, mode, contacts, 1, out);
+        ASSERT_EQ(out.contact, expected.contact) << toString(mode) << " probe " << p.transpose();
+        if (mode == DetectionMode::Exact) {
+          const ContactResult reference = bruteForceQuery(*mesh, p, r);
+          ASSERT_EQ(expected.contact, reference.contact) << "probe " << p.transpose();
+          if (reference.contact) {
+            ++exactContacts;
+            EXPECT_NEAR(expected.distance, reference.distance, 1e-12 * r);
+            EXPECT_LE((expected.point - reference.point).norm(), 1e-12 * r + 4e-16 * offset.norm());
+          }
+        }
+        if (!expected.contact) continue;
+        EXPECT_EQ(contacts[0].local.point, expected.point);
+        EXPECT_EQ(contacts[0].local.depth, expected.depth);
+        if (mode == DetectionMode::Spheres) {
+          ++sphereContacts;
+          outsideMeshBox += box.exteriorDistance(p) > r;
+        }
       }
     }
+    EXPECT_GT(exactContacts, 50u);
+    EXPECT_GT(sphereContacts, 100u);
+    EXPECT_GT(outsideMeshBox, 0u) << "no probe tested the spheres beyond the mesh's box";
   }
-  EXPECT_GT(sphereContacts, 100u);
-  EXPECT_GT(outsideMeshBox, 0u) << "no probe tested the spheres beyond the mesh's box";
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/core/sphere_set_io.h"
 #include "test_helpers.h"
@@ -43,6 +44,7 @@ void expectEqualSets(const ClodSphereSet& a, const ClodSphereSet& b) {
   EXPECT_EQ(a.meshName, b.meshName);
   EXPECT_EQ(a.scale, b.scale);
   EXPECT_EQ(a.distance, b.distance);
+  EXPECT_EQ(a.origin, b.origin);
   EXPECT_EQ(a.centres, b.centres) << "17 significant digits give the same doubles back";
   EXPECT_EQ(a.radii, b.radii);
   EXPECT_EQ(a.offsets, b.offsets);
@@ -64,6 +66,40 @@ TEST_F(SphereSetIo, RoundTripIsExact) {
       EXPECT_TRUE(clod_test::coverageProblems(*mesh, back).empty());
     }
   }
+}
+
+// A mesh far from zero: the set's centres are relative to the mesh's local origin, which the file keeps, and
+// the set read back fits the mesh (fitProblem checks the origin too).
+TEST_F(SphereSetIo, FarMeshKeepsItsLocalOrigin) {
+  MeshLoadOptions options;
+  const TriangleMesh unit = loadMesh(clod_test::testData("cube.obj"));
+  std::vector<Vec3> far;
+  for (const Vec3& v : unit.vertices) far.push_back(unit.toModel(v) + Vec3(1e6, -3e5, 0.0));
+  const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(far, unit.triangles, "far cube"));
+  ASSERT_NE(mesh->origin.x(), 0.0);
+  const ClodSphereSet set = ClodBuilder(mesh).build(0.1);
+  EXPECT_EQ(set.origin, mesh->origin);
+  const std::string file = path("far.yaml");
+  writeSphereSetYaml(set, file);
+  const ClodSphereSet back = readSphereSetYaml(file);
+  expectEqualSets(set, back);
+  EXPECT_EQ(fitProblem(*mesh, back), "");
+  ClodSphereSet moved = back;
+  moved.origin.x() += 1.0;
+  EXPECT_NE(fitProblem(*mesh, moved).find("local origin"), std::string::npos);
+}
+
+TEST_F(SphereSetIo, VersionOneFileReadsWithAZeroOrigin) {
+  const auto mesh = clod_test::loadNormalized(clod_test::testData("cube.obj"));
+  const ClodSphereSet set = ClodBuilder(mesh).build(0.0);
+  std::ostringstream text;
+  writeSphereSetYaml(set, text);
+  std::string v1 = text.str();
+  v1.replace(v1.find("sphere_set/2"), 12, "sphere_set/1");
+  v1.erase(v1.find("origin: "), v1.find('\n', v1.find("origin: ")) - v1.find("origin: ") + 1);
+  const ClodSphereSet back = readSphereSetYaml(write("v1.yaml", v1));
+  expectEqualSets(set, back);
+  EXPECT_EQ(back.origin, Vec3::Zero());
 }
 
 TEST_F(SphereSetIo, StreamAndFileWritersAgree) {

@@ -49,6 +49,22 @@ TEST(Conversions, SphereSetRoundTripKeepsEverything) {
   EXPECT_EQ(fitProblem(*torus(), back), "");
 }
 
+TEST(Conversions, SphereSetMessageCarriesTheLocalOrigin) {
+  std::vector<Vec3> far;
+  for (const Vec3& v : torus()->vertices) far.push_back(torus()->toModel(v) + Vec3(0.0, 5e5, 0.0));
+  const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(far, torus()->triangles, "far torus"));
+  ASSERT_NE(mesh->origin.y(), 0.0);
+  const ClodSphereSet set = ClodBuilder(mesh).build(0.003);
+  SphereSet msg;
+  toMsg(set, std_msgs::Header(), msg);
+  EXPECT_EQ(msg.origin.y, mesh->origin.y());
+  const ClodSphereSet back = fromMsg(msg);
+  EXPECT_EQ(back.origin, set.origin);
+  EXPECT_EQ(fitProblem(*mesh, back), "");
+  msg.origin.x = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(fromMsg(msg), FormatError);
+}
+
 TEST(Conversions, FromMsgRejectsNonFiniteAndNegativeRadius) {
   SphereSet msg;
   msg.spheres.resize(1);

@@ -11,6 +11,7 @@
 
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/mesh_loader.h"
+#include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/ros/markers.h"
 #include "clod_haptics/test_config.h"
 
@@ -39,6 +40,24 @@ TEST(Markers, MeshIsATriangleListOfEveryCorner) {
   EXPECT_EQ(m.points[3 * 5 + 2].x, v.x());
   EXPECT_EQ(m.points[3 * 5 + 2].z, v.z());
   EXPECT_EQ(m.pose.orientation.w, 1.0);
+}
+
+// A mesh far from zero: the markers show it where it is (model frame), not at its local coordinates.
+TEST(Markers, FarMeshAndItsSpheresAreDrawnInTheModelFrame) {
+  std::vector<Vec3> far;
+  for (const Vec3& v : torus().vertices) far.push_back(torus().toModel(v) + Vec3(2e5, 0.0, -1e6));
+  const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(far, torus().triangles, "far torus"));
+  ASSERT_NE(mesh->origin.z(), 0.0);
+  const Marker m = meshMarker(*mesh, header(), makeColor(1, 1, 1, 1));
+  ASSERT_EQ(m.points.size(), 3 * mesh->size());
+  EXPECT_EQ(m.points[3 * 5 + 2].z, far[mesh->triangles[5][2]].z());
+  const ClodSphereSet set = ClodBuilder(mesh).build(0.003);
+  visualization_msgs::MarkerArray out;
+  appendSphereMarkers(set, nullptr, "spheres", header(), makeColor(1, 1, 1, 1), 0, out);
+  ASSERT_FALSE(out.markers.empty());
+  const Eigen::AlignedBox3d box = mesh->modelBounds();
+  for (const Marker& list : out.markers)
+    for (const auto& p : list.points) EXPECT_LT(box.exteriorDistance(Vec3(p.x, p.y, p.z)), 0.01) << p.x << " " << p.z;
 }
 
 // Every listed sphere is drawn exactly once, at its centre, never smaller than it is and at most one radius class
