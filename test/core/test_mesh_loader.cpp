@@ -6,11 +6,15 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
+#include <random>
 #include <string>
 
 #include "clod_haptics/core/errors.h"
@@ -337,6 +341,264 @@ TEST(MeshLoader, SharedMeshesLoadClosedCounts) {
       ASSERT_TRUE(n.allFinite());
       EXPECT_TRUE(n.isZero(0.0) || std::abs(n.norm() - 1.0) < 1e-12);
     }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Polygons of 5 or more corners (OFF, OBJ, PLY) are ear clipped in their plane. Each polygon is given in 2D
+// (u, v) and placed at origin + u e1 + v e2; the reference is computed from the 2D corners alone: the area by
+// the shoelace formula, inside by a crossing-number test, the orientation by the shoelace's sign along e1 x e2.
+
+struct PlanarPolygon {
+  std::string name;
+  std::vector<std::array<double, 2>> uv;
+  Vec3 origin = Vec3::Zero(), e1 = Vec3::UnitX(), e2 = Vec3::UnitY();
+
+  Vec3 corner(std::size_t i) const { return origin + uv[i][0] * e1 + uv[i][1] * e2; }
+  std::array<double, 2> toPlane(const Vec3& p) const { return {(p - origin).dot(e1), (p - origin).dot(e2)}; }
+  /** \brief Twice the signed area (positive: counter-clockwise about e1 x e2). */
+  double shoelace() const {
+    double twice = 0.0;
+    for (std::size_t i = 0; i < uv.size(); ++i) {
+      const auto &a = uv[i], &b = uv[(i + 1) % uv.size()];
+      twice += a[0] * b[1] - b[0] * a[1];
+    }
+    return twice;
+  }
+  bool contains(const std::array<double, 2>& q) const {  // crossing number
+    bool inside = false;
+    for (std::size_t i = 0, j = uv.size() - 1; i < uv.size(); j = i++) {
+      const auto &a = uv[i], &b = uv[j];
+      if ((a[1] > q[1]) != (b[1] > q[1]) && q[0] < a[0] + (q[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]))
+        inside = !inside;
+    }
+    return inside;
+  }
+  PlanarPolygon reversed() const {
+    PlanarPolygon r = *this;
+    r.name += " reversed";
+    std::reverse(r.uv.begin() + 1, r.uv.end());  // corner 0 stays corner 0
+    return r;
+  }
+  PlanarPolygon inPlane(const std::string& label, const Vec3& normal, const Vec3& at) const {
+    PlanarPolygon r = *this;
+    r.name += " " + label;
+    const Vec3 n = normal.normalized();
+    r.e1 = n.unitOrthogonal();
+    r.e2 = n.cross(r.e1);
+    r.origin = at;
+    return r;
+  }
+};
+
+// An L whose corner 0 (2, 1) is next to the reflex corner (1, 1): the fan's first triangle lies outside.
+PlanarPolygon lShape() { return {"L hexagon", {{2, 1}, {1, 1}, {1, 2}, {0, 2}, {0, 0}, {2, 0}}}; }
+// The same L from the corner that sees every other one (a fan would do here).
+PlanarPolygon lShapeFromCorner() { return {"L hexagon from (0,0)", {{0, 0}, {2, 0}, {2, 1}, {1, 1}, {1, 2}, {0, 2}}}; }
+// An arrow pointing along +u; corner 1 (2, 1), where the shaft meets the head, is reflex.
+PlanarPolygon arrow() { return {"arrow", {{0, 1}, {2, 1}, {2, 0}, {4, 2}, {2, 4}, {2, 3}, {0, 3}}}; }
+// A star with `points` tips (corner 0 a tip, corners 1 and 2 points - 1 reflex), uneven radii.
+PlanarPolygon star(int points, const std::string& name) {
+  PlanarPolygon p{name, {}};
+  for (int i = 0; i < 2 * points; ++i) {
+    const double a = M_PI * i / points, r = i % 2 == 0 ? 2.0 + 0.3 * std::sin(3.0 * i) : 0.8;
+    p.uv.push_back({r * std::cos(a), r * std::sin(a)});
+  }
+  return p;
+}
+// A convex heptagon with uneven sides.
+PlanarPolygon heptagon() {
+  PlanarPolygon p{"convex heptagon", {}};
+  for (double a : {0.0, 0.7, 1.9, 2.6, 3.5, 4.4, 5.5}) p.uv.push_back({3.0 * std::cos(a), 2.0 * std::sin(a)});
+  return p;
+}
+
+// A comb: a bar along the bottom and `teeth` teeth pointing up, every gap's two bottom corners reflex.
+PlanarPolygon comb(int teeth) {
+  PlanarPolygon p{"comb", {{0, 0}, {2.0 * teeth - 1.0, 0}}};
+  for (int t = teeth - 1; t >= 0; --t) {  // tooth t spans u in [2t, 2t + 1]
+    p.uv.push_back({2.0 * t + 1.0, 3.0});
+    p.uv.push_back({2.0 * t, 3.0});
+    if (t == 0) break;
+    p.uv.push_back({2.0 * t, 1.0});
+    p.uv.push_back({2.0 * t - 1.0, 1.0});
+  }
+  return p;
+}
+// A strip along two turns of a spiral: not star-shaped, no corner sees the whole polygon.
+PlanarPolygon spiral() {
+  PlanarPolygon p{"spiral strip", {}};
+  const int steps = 48;
+  for (int i = 0; i <= steps; ++i) {
+    const double a = 4.0 * M_PI * i / steps, r = 1.0 + 0.5 * a;
+    p.uv.push_back({r * std::cos(a), r * std::sin(a)});
+  }
+  for (int i = steps; i >= 0; --i) {
+    const double a = 4.0 * M_PI * i / steps, r = 1.0 + 0.5 * a + 1.2;
+    p.uv.push_back({r * std::cos(a), r * std::sin(a)});
+  }
+  return p;
+}
+// A star-shaped polygon of 200 corners at pseudo-random radii (std::mt19937's output is fixed by the standard).
+PlanarPolygon randomRadii() {
+  PlanarPolygon p{"200 random radii", {}};
+  std::mt19937 random(7);
+  for (int i = 0; i < 200; ++i) {
+    const double a = 2.0 * M_PI * i / 200, r = 0.2 + random() / 4294967296.0;
+    p.uv.push_back({r * std::cos(a), r * std::sin(a)});
+  }
+  return p;
+}
+
+std::vector<PlanarPolygon> nonConvexPolygons() {
+  std::vector<PlanarPolygon> base = {lShape(), lShapeFromCorner(), arrow(), star(5, "5-point star"), heptagon()};
+  base.push_back(star(512, "1024-corner star (the largest ear clipped)"));
+  for (const PlanarPolygon& p : {comb(8), spiral(), randomRadii()}) base.push_back(p);
+  // Tilted planes, far from every axis plane (each of the three dominant axes) and away from the origin.
+  base.push_back(star(5, "5-point star").inPlane("in plane n = (1, 2, 3)", Vec3(1, 2, 3), Vec3(3.5, -7.25, 12.0)));
+  base.push_back(arrow().inPlane("in plane n = (-3, 1, 2)", Vec3(-3, 1, 2), Vec3(-40.0, 2.0, 0.5)));
+  base.push_back(lShape().inPlane("in plane n = (1, -2, 1.5)", Vec3(1, -2, 1.5), Vec3(1e3, 1e3, -1e3)));
+  base.push_back(spiral().inPlane("in plane n = (2, 1, -1)", Vec3(2, 1, -1), Vec3(0.25, -3.0, 8.0)));
+  std::vector<PlanarPolygon> all;
+  for (const auto& p : base) {
+    all.push_back(p);
+    all.push_back(p.reversed());
+  }
+  return all;
+}
+
+// Writes one polygon face as OFF, OBJ or ASCII PLY.
+void writePolygon(const std::string& path, const std::vector<Vec3>& corners) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  ASSERT_NE(f, nullptr) << path;
+  const std::string ext = std::filesystem::path(path).extension().string();
+  const std::size_t n = corners.size();
+  if (ext == ".off") std::fprintf(f, "OFF\n%zu 1 0\n", n);
+  if (ext == ".ply")
+    std::fprintf(f,
+                 "ply\nformat ascii 1.0\nelement vertex %zu\nproperty double x\nproperty double y\n"
+                 "property double z\nelement face 1\nproperty list uint int vertex_indices\nend_header\n",
+                 n);
+  for (const Vec3& p : corners)
+    std::fprintf(f, "%s%.17g %.17g %.17g\n", ext == ".obj" ? "v " : "", p.x(), p.y(), p.z());
+  std::fprintf(f, ext == ".obj" ? "f" : "%zu", n);
+  for (std::size_t i = 0; i < n; ++i) std::fprintf(f, " %zu", ext == ".obj" ? i + 1 : i);
+  std::fprintf(f, "\n");
+  std::fclose(f);
+}
+
+class PolygonFiles : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() / ("clod_polygons_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::string write(const std::string& name, const std::vector<Vec3>& corners) {
+    const std::string path = (dir_ / name).string();
+    writePolygon(path, corners);
+    return path;
+  }
+  static TriangleMesh load(const std::string& path) {
+    MeshLoadOptions options;
+    options.orientOutward = false;  // one open polygon: keep the file's winding
+    return loadMesh(path, options);
+  }
+  std::filesystem::path dir_;
+};
+
+// n - 2 triangles that tile the polygon: their areas add up to its area, each centroid lies inside it and each
+// normal points along the polygon's own (e1 x e2 times the shoelace's sign).
+void expectTiles(const TriangleMesh& mesh, const PlanarPolygon& poly) {
+  const std::size_t n = poly.uv.size();
+  ASSERT_EQ(mesh.size(), n - 2);
+  const double twice = poly.shoelace();
+  const Vec3 up = (twice > 0.0 ? 1.0 : -1.0) * poly.e1.cross(poly.e2);
+  double area = 0.0;
+  int outside = 0, wrongWay = 0;
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
+    const Vec3 a = mesh.toModel(mesh.vertex(t, 0)), b = mesh.toModel(mesh.vertex(t, 1)),
+               c = mesh.toModel(mesh.vertex(t, 2));
+    const Vec3 normal = (b - a).cross(c - a);
+    area += 0.5 * normal.norm();
+    if (normal.dot(up) <= 0.0 && ++wrongWay <= 3) ADD_FAILURE() << "triangle " << t << " wound against the polygon";
+    if (!poly.contains(poly.toPlane((a + b + c) / 3.0)) && ++outside <= 3)
+      ADD_FAILURE() << "triangle " << t << " has its centroid outside the polygon";
+  }
+  EXPECT_EQ(wrongWay, 0);
+  EXPECT_EQ(outside, 0);
+  EXPECT_NEAR(area, 0.5 * std::abs(twice), 1e-12 * std::abs(twice)) << "the triangles' areas add up to the polygon's";
+}
+
+TEST_F(PolygonFiles, NonConvexPolygonsAreEarClippedInsideTheirOutline) {
+  for (const PlanarPolygon& poly : nonConvexPolygons())
+    for (const char* ext : {".obj", ".off", ".ply"}) {
+      SCOPED_TRACE(poly.name + " " + ext);
+      std::vector<Vec3> corners;
+      for (std::size_t i = 0; i < poly.uv.size(); ++i) corners.push_back(poly.corner(i));
+      const std::string path = write("polygon" + std::string(ext), corners);
+      expectTiles(load(path), poly);
+    }
+}
+
+// Hostile input terminates and gives n - 2 triangles: corners on one line (zero Newell normal), a figure eight
+// (its two loops' areas cancel), all corners at one point, a polygon crossing itself many times.
+TEST_F(PolygonFiles, DegeneratePolygonsLoadWithoutCrash) {
+  std::vector<std::pair<std::string, std::vector<Vec3>>> cases;
+  std::vector<Vec3> line, eight, point, tangle;
+  for (int i = 0; i < 7; ++i) line.push_back(Vec3(1, 2, 3) + i * Vec3(0.5, -1.0, 2.0));
+  for (int i = 0; i < 8; ++i) eight.push_back(Vec3(std::sin(2 * M_PI * i / 8), std::sin(4 * M_PI * i / 8), 1.0));
+  for (int i = 0; i < 6; ++i) point.push_back(Vec3(4, 5, 6));
+  for (int i = 0; i < 40; ++i) tangle.push_back(Vec3(std::cos(2.9 * i), std::sin(2.9 * i), 0.01 * (i % 3)));
+  cases = {{"collinear", line}, {"figure eight", eight}, {"one point", point}, {"self-crossing", tangle}};
+  for (const auto& c : cases)
+    for (const char* ext : {".obj", ".off"}) {
+      SCOPED_TRACE(c.first + ext);
+      const std::string path = write("degenerate" + std::string(ext), c.second);
+      TriangleMesh mesh;
+      ASSERT_NO_THROW(mesh = load(path));
+      EXPECT_EQ(mesh.size(), c.second.size() - 2);
+      for (const Triangle& t : mesh.triangles)
+        for (std::uint32_t v : t) ASSERT_LT(v, mesh.vertices.size());
+      for (const Vec3& n : mesh.normals) EXPECT_TRUE(n.allFinite());
+    }
+}
+
+// Above 1024 corners a polygon is fanned from corner 0 (ear clipping costs O(n^2) there): a 5000-corner star
+// loads in a child bounded by an alarm, as 4998 triangles that all share corner 0 (a fan, not ear clipping).
+int loadFannedInChild(const std::string& path, const Vec3& corner0, std::size_t n) {
+  ::alarm(60);
+  MeshLoadOptions options;
+  options.orientOutward = false;
+  TriangleMesh mesh;
+  try {
+    mesh = loadMesh(path, options);
+  } catch (...) {
+    return 3;
+  }
+  if (mesh.size() != n - 2) return 1;
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
+    bool shares = false;
+    for (int k = 0; k < 3; ++k) shares = shares || mesh.toModel(mesh.vertex(t, k)) == corner0;
+    if (!shares) return 2;
+  }
+  return 0;
+}
+TEST_F(PolygonFiles, HugePolygonIsFannedWithoutHanging) {
+  ::testing::FLAGS_gtest_death_test_style = "threadsafe";
+  const PlanarPolygon poly = star(2500, "5000-corner star");
+  std::vector<Vec3> corners;
+  for (std::size_t i = 0; i < poly.uv.size(); ++i) corners.push_back(poly.corner(i));
+  for (const char* ext : {".obj", ".off"}) {
+    const std::string path = write("huge" + std::string(ext), corners);
+    EXPECT_EXIT(
+        {
+          const int code = loadFannedInChild(path, corners[0], corners.size());
+          std::filesystem::remove_all(dir_);  // the child's own directory: it exits before TearDown
+          std::exit(code);
+        },
+        ::testing::ExitedWithCode(0), "")
+        << ext;
   }
 }
 

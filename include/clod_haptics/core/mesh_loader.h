@@ -31,8 +31,9 @@ double signedVolume(const TriangleMesh& mesh);
  * \brief Loads a triangle mesh: OFF, OBJ, PLY (ASCII and binary) and STL (ASCII and binary) in double
  * precision, exactly the file's numbers, by strict readers; any other format assimp reads (DAE, ...) through
  * assimp, in single precision, with a one-line warning on std::clog. Polygons are triangulated (quads as assimp
- * splits them, larger polygons as a fan), node transforms applied, all meshes merged and vertices at identical
- * positions joined. The model frame is the file's frame times options.scale (or the unit cube when
+ * splits them; larger polygons by ear clipping in their plane, so a non-convex one stays inside its outline, and
+ * beyond 1024 corners, or without a plane, as a fan), node transforms applied, all meshes merged and vertices
+ * at identical positions joined. The model frame is the file's frame times options.scale (or the unit cube when
  * normalising); a mesh far from its frame's zero is stored relative to its centre (TriangleMesh::origin,
  * chooseLocalOrigin), subtracted from the file's numbers before scaling, so it keeps the precision of a mesh
  * at zero: at scale 1, local + origin gives back the file's numbers exactly.

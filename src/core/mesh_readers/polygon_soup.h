@@ -46,7 +46,12 @@ struct PositionHash {
   std::size_t operator()(const Vec3& v) const;
 };
 
-/** \brief Triangles and joined vertices of a soup: quads split as assimp did, larger polygons fanned. */
+/**
+ * \brief Triangles and joined vertices of a soup: quads split as assimp did; polygons of 5 to 1024 corners ear
+ * clipped in their Newell plane, keeping their winding, so a non-convex one stays inside its outline (a fan
+ * would not); larger ones, and those with no plane (corners on a line), fanned from corner 0. The cap bounds
+ * the O(n^2) ear clipping: one million-corner polygon in a hostile file would otherwise never finish.
+ */
 void triangulateSoup(const PolygonSoup& soup, std::vector<Vec3>& vertices, std::vector<Triangle>& triangles);
 
 /** \brief Reads an ASCII OFF file (also COFF, NOFF, STOFF: the extra per-vertex values are skipped). */
