@@ -118,7 +118,7 @@ ClodSphereSet SceneAssets::fetchOrBuild(const std::shared_ptr<const TriangleMesh
 void SceneAssets::dropUnusedLevels(const TriangleMesh* mesh, std::uint64_t keepDistanceBits) {
   // Entries only this map holds, of the same mesh at another distance: nothing would share them again soon.
   for (auto it = levels_.begin(); it != levels_.end();) {
-    const bool drop = it->first.first.first == mesh && it->first.first.second != keepDistanceBits &&
+    const bool drop = std::get<0>(it->first).first == mesh && std::get<0>(it->first).second != keepDistanceBits &&
                       it->second.use_count() == 1;
     it = drop ? levels_.erase(it) : std::next(it);
   }
@@ -158,9 +158,12 @@ std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<con
   const LevelKey key{mesh.get(), bits};
 
   std::lock_guard<std::mutex> lock(mutex_);
+  const double gridRadius = fastLevel == FastLevel::Grid ? gridRadius_ : 0.0;
+  std::uint64_t radiusBits;
+  std::memcpy(&radiusBits, &gridRadius, sizeof(radiusBits));
   // Keyed by the mesh object (which the detector and set keep alive), so the detector handed out
   // always refers to the very mesh the caller passed: SceneDetector checks that.
-  auto found = levels_.find({key, fastLevel});
+  auto found = levels_.find({key, fastLevel, radiusBits});
   if (found != levels_.end()) {
     out.shared = true;
     out.cache.source = CacheSource::Hit;
@@ -168,10 +171,27 @@ std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<con
   }
   auto set = spheresLocked(mesh, distance, out);
   const auto start = std::chrono::steady_clock::now();
-  auto detector = std::make_shared<const ClodDetector>(mesh, set, fastLevel, gridRadius_);
+  auto detector = std::make_shared<const ClodDetector>(mesh, set, fastLevel, gridRadius);
   out.detectorMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  levels_[{key, fastLevel}] = detector;
+  // Grids of the same level for another radius that only this map holds: a radius change left them behind.
+  for (auto it = levels_.begin(); it != levels_.end();) {
+    const bool drop = std::get<0>(it->first) == key && std::get<1>(it->first) == fastLevel &&
+                      std::get<2>(it->first) != radiusBits && it->second.use_count() == 1;
+    it = drop ? levels_.erase(it) : std::next(it);
+  }
+  levels_[{key, fastLevel, radiusBits}] = detector;
   return detector;
+}
+
+void SceneAssets::setGridRadius(double radius) {
+  requireNonNegative(radius, "grid radius");
+  std::lock_guard<std::mutex> lock(mutex_);
+  gridRadius_ = radius;
+}
+
+double SceneAssets::gridRadius() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return gridRadius_;
 }
 
 }  // namespace clod_haptics

@@ -147,9 +147,12 @@ void HapticDetector::loadObjects() {
     const std::string base = p.cacheDir.empty() ? defaultSphereCacheDirectory() : p.cacheDir;
     cache = std::make_shared<SphereSetCache>(p.clustering == "single-link" ? base : base + "/" + p.clustering);
   }
-  // A scene's grids serve the pointer radius it starts with; a single mesh's, 1% of its size unless told.
+  // Grids serve the pointer radius (and follow it when it is reconfigured) unless ~grid_radius says otherwise.
   double gridRadius = p.gridRadius;
-  if (gridRadius == 0.0 && !singleMesh_) pnh_.param("pointer_radius", gridRadius, radius_.load());
+  gridFollowsPointer_ = gridRadius == 0.0;
+  if (gridFollowsPointer_) pnh_.param("pointer_radius", gridRadius, radius_.load());
+  if (!(gridRadius > 0.0) || !std::isfinite(gridRadius)) gridRadius = 0.0;  // 1% of the model, as the core does
+  gridTarget_ = gridRadius;
   assets_ = std::make_unique<SceneAssets>(cache, p.fastLevel, gridRadius, true, makeClustering(p.clustering));
   if (p.useCache && p.cacheMeshes) assets_->setMeshCache(std::make_shared<MeshCache>(p.cacheDir));
   if (p.useService) {
@@ -373,11 +376,18 @@ void HapticDetector::adoptPublishedLevels() {
   adopted_.store(adoptedId_, std::memory_order_release);
 }
 
+bool HapticDetector::isFinal(const ClodDetector& level) const {
+  if (level.fastLevel() != params_.fastLevel) return false;  // the quick hierarchy of ~quick_start
+  // A grid built for another pointer radius is replaced when the pointer comes near (grid_on_demand).
+  return !gridFollowsPointer_ || params_.fastLevel != FastLevel::Grid || gridTarget_.load() == 0.0 ||
+         level.gridRadius() == gridTarget_.load(std::memory_order_relaxed);
+}
+
 void HapticDetector::askForNearLevels(const Vec3& p) {
   const double reachOut = radius_.load(std::memory_order_relaxed) + params_.prefetchMargin;
   for (std::uint32_t i = 0; i < scene_.size(); ++i) {
     const auto& level = scene_.detector(i);
-    if ((level && level->fastLevel() == params_.fastLevel) || wanted_[i].load(std::memory_order_relaxed)) continue;
+    if ((level && isFinal(*level)) || wanted_[i].load(std::memory_order_relaxed)) continue;
     const double reach = scene_.boundRadius(i) + reachOut;
     if ((scene_.boundCentre(i) - p).squaredNorm() <= reach * reach) {
       wanted_[i].store(true, std::memory_order_relaxed);

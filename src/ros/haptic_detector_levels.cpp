@@ -76,6 +76,8 @@ void HapticDetector::onReconfigure(DetectorConfig& config, std::uint32_t /*level
   switches.pointer = config.show_pointer;
   display_->setSwitches(switches);  // the display thread runs this callback too
 
+  followPointerRadius(config.pointer_radius);
+
   // At start-up a scene keeps the distances of its file; a later change applies to every object.
   const bool first = !configured_;
   configured_ = true;
@@ -87,6 +89,22 @@ void HapticDetector::onReconfigure(DetectorConfig& config, std::uint32_t /*level
   {
     std::lock_guard<std::mutex> lock(workerMutex_);
     distanceChanged_ = true;
+  }
+  workerCv_.notify_all();
+}
+
+void HapticDetector::followPointerRadius(double radius) {
+  // The grids serve the pointer radius: a new one rebuilds them off the haptic path, as a level swap (the old
+  // grids answer meanwhile, a larger radius through their hierarchy: slower, never wrong).
+  if (!gridFollowsPointer_ || !assets_ || params_.fastLevel != FastLevel::Grid || !(radius > 0.0) ||
+      radius == gridTarget_.load())
+    return;
+  assets_->setGridRadius(radius);
+  gridTarget_ = radius;
+  ROS_INFO("detector: pointer radius %g: rebuilding the grids for it", radius);
+  {
+    std::lock_guard<std::mutex> lock(workerMutex_);
+    radiusChanged_ = true;
   }
   workerCv_.notify_all();
 }
@@ -107,11 +125,17 @@ void HapticDetector::levelWorker() {
           p.quick = false;
         }
       }
+      if (radiusChanged_) {  // built grids are for the old radius: back one step, the next one builds the grid
+        radiusChanged_ = false;
+        for (LevelPlan& p : plan)
+          if (p.step == kFinal) p.step = kQuick;
+      }
     }
     if (prepareNextLevel(plan)) continue;
     // Nothing to do until the pointer asks for an object, the distance changes or the node stops.
     std::unique_lock<std::mutex> lock(workerMutex_);
-    workerCv_.wait_for(lock, std::chrono::milliseconds(20), [this] { return stop_ || distanceChanged_; });
+    workerCv_.wait_for(lock, std::chrono::milliseconds(20),
+                       [this] { return stop_ || distanceChanged_ || radiusChanged_; });
   }
 }
 

@@ -59,10 +59,12 @@ void HapticDetector::publishStatus() {
   }
   // The distance every object's level shares (NaN while one has none or they differ), their spheres in all.
   double distance = std::numeric_limits<double>::quiet_NaN();
+  double gridRadius = levels && !levels->detectors.empty() ? std::numeric_limits<double>::infinity() : 0.0;
   std::uint32_t spheres = 0;
   bool complete = levels != nullptr;
   for (std::size_t i = 0; levels && i < levels->detectors.size(); ++i) {
     const auto& level = levels->detectors[i];
+    gridRadius = std::min(gridRadius, level ? level->gridRadius() : 0.0);
     if (!level) {
       complete = false;
       continue;
@@ -74,6 +76,7 @@ void HapticDetector::publishStatus() {
   }
   status->clustering_distance = complete ? distance : std::numeric_limits<double>::quiet_NaN();
   status->level_spheres = spheres;
+  status->grid_radius = gridRadius;
   status->level_source = levels ? levels->source : "";
   status->level_ready_ms = levels ? levels->readyMs : 0.0;
   statusPub_.publish(status);

@@ -99,6 +99,8 @@ class ClodDetector {
   const std::shared_ptr<const ClodSphereSet>& spheres() const { return spheres_; }
   /** \brief The fast-level strategy in use. */
   FastLevel fastLevel() const { return fastLevel_; }
+  /** \brief The largest pointer radius the grid serves (0 without a grid): larger radii take the hierarchy. */
+  double gridRadius() const noexcept { return grid_.empty() ? 0.0 : grid_.radius(); }
   /**
    * \brief A number unique to this detector within the process (a counter stamped at construction,
    * never reused, never 0): the identity a QueryCache keeps across level swaps.

@@ -6,6 +6,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <tuple>
 #include <utility>
 
 #include "clod_haptics/core/clustering.h"
@@ -106,6 +107,16 @@ class SceneAssets {
   /** \brief The fast level of level(mesh, d). */
   FastLevel fastLevel() const { return fastLevel_; }
 
+  /**
+   * \brief The grid radius of the detectors built from now on (the pointer radius they serve; 0: 1% of the
+   * model's diagonal). Detectors already handed out keep theirs; level() builds a new grid for the new radius
+   * and drops the grids of other radii that nobody holds any more.
+   * \throws InvalidParameter for a negative or non-finite radius.
+   */
+  void setGridRadius(double radius);
+  /** \brief The grid radius of the next detectors. */
+  double gridRadius() const;
+
   /** \brief Content hash of a mesh (computed once per mesh). */
   std::uint64_t hash(const std::shared_ptr<const TriangleMesh>& mesh);
 
@@ -131,14 +142,15 @@ class SceneAssets {
   FastLevel fastLevel_;
   double gridRadius_;
   bool keepBuilders_;
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::map<std::string, std::shared_ptr<const TriangleMesh>> meshes_;        // key: path + options
   // key: the mesh's address, checked against the weak pointer (an address can be reused after a free)
   std::map<const TriangleMesh*, std::pair<std::weak_ptr<const TriangleMesh>, std::uint64_t>> hashes_;
   std::map<std::uint64_t, std::shared_ptr<const ClodBuilder>> builders_;     // key: content hash
   using LevelKey = std::pair<const TriangleMesh*, std::uint64_t>;  // (mesh, bits of d)
   std::map<LevelKey, std::pair<std::weak_ptr<const TriangleMesh>, std::shared_ptr<const ClodSphereSet>>> sets_;
-  std::map<std::pair<LevelKey, FastLevel>, std::shared_ptr<const ClodDetector>> levels_;
+  // Detectors by (mesh, d), fast level and the bits of the grid radius (0 for the other fast levels).
+  std::map<std::tuple<LevelKey, FastLevel, std::uint64_t>, std::shared_ptr<const ClodDetector>> levels_;
   std::uint64_t placements_ = 0;
 };
 

@@ -55,7 +55,9 @@ struct DetectorParameters {
   bool cacheMeshes = true;      ///< also cache parsed meshes (a restart skips the parser)
   std::string clustering = "single-link";
   FastLevel fastLevel = FastLevel::Grid;
-  double gridRadius = 0.0;  ///< largest pointer radius the grid serves; 0: the pointer radius (scene) or 1%
+  /// Largest pointer radius the grid serves; 0: the pointer radius, followed when it is reconfigured (the grids
+  /// are rebuilt off the haptic path, the old ones answering meanwhile, larger radii through the hierarchy).
+  double gridRadius = 0.0;
   PosePolicy posePolicy = PosePolicy::All;
   int poseQueueSize = 5000;        ///< poses roscpp keeps for the detector (5 s at 1 kHz)
   int publishQueueSize = 5000;     ///< answers kept per subscriber that reads too slowly
@@ -140,6 +142,7 @@ class HapticDetector {
   bool pointerInSceneFrame(const geometry_msgs::PoseStamped& msg, Vec3& p, Eigen::Isometry3d& sceneFromPose);
   void updateObjectPoses(const ros::Time& stamp);
   void adoptPublishedLevels();
+  bool isFinal(const ClodDetector& level) const;
   void askForNearLevels(const Vec3& p);
   void publishAnswer(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius,
                      const Eigen::Isometry3d& sceneFromPose, const SceneQueryResult& out, std::int64_t detectionNs);
@@ -148,6 +151,7 @@ class HapticDetector {
   // Levels (haptic_detector_levels.cpp).
   void onReconfigure(DetectorConfig& config, std::uint32_t level);
   void levelWorker();
+  void followPointerRadius(double radius);
   bool prepareNextLevel(std::vector<LevelPlan>& plan);
   void publishLevel(std::size_t object, std::shared_ptr<const ClodDetector> detector, const std::string& source,
                     double ms);
@@ -199,6 +203,9 @@ class HapticDetector {
   std::condition_variable workerCv_;
   bool stop_ = false;
   bool distanceChanged_ = false;
+  bool radiusChanged_ = false;                          // the grids must follow a new pointer radius
+  bool gridFollowsPointer_ = false;                     // ~grid_radius 0: grids serve the pointer radius
+  std::atomic<double> gridTarget_{0.0};                 // the radius final grids serve (when following)
   std::unique_ptr<std::atomic<bool>[]> wanted_;         // per object: the pointer is near, prepare it first
   std::atomic<const Levels*> published_{nullptr};       // the newest snapshot (owned by levels_)
   std::mutex levelsMutex_;                              // never taken by the pose thread
