@@ -151,6 +151,10 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   // Padding relative to the coordinates' magnitude: covers rounding in every bound test.
   const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());
   pad_ = 1e-12 * std::max(magnitude, bounds.diagonal().norm());
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    reachFromCentre_ = std::max(reachFromCentre_, (s.centres[i] - bounds.center()).norm() + s.radii[i]);
+    reachBeyondBox_ = std::max(reachBeyondBox_, bounds.exteriorDistance(s.centres[i]) + s.radii[i]);
+  }
 
   // Records for the hierarchy and the flat list; the grid reads the mesh's own arrays instead, also in its
   // hierarchy fallback.

@@ -85,16 +85,13 @@ void SceneDetector::setDetector(std::uint32_t i, std::shared_ptr<const ClodDetec
 
 void SceneDetector::measureSpheres(std::uint32_t i) {
   // Spheres mode answers contact with a CLOD sphere, and a sphere reaches beyond the mesh's bound: how far, for
-  // the sphere test and for the box test.
+  // the sphere test and for the box test. The detector measured its spheres when it was built (O(spheres), off
+  // the haptic path); localCentre and localBox are the same bounds it measured from.
   Object& object = objects_[i];
   double sphereGrow = 0.0, boxGrow = 0.0;
   if (object.detector) {
-    const ClodSphereSet& set = *object.detector->spheres();
-    for (std::size_t s = 0; s < set.size(); ++s) {
-      const double r = set.radii[s];
-      sphereGrow = std::max(sphereGrow, (set.centres[s] - object.localCentre).norm() + r - object.radius);
-      boxGrow = std::max(boxGrow, object.localBox.exteriorDistance(set.centres[s]) + r);
-    }
+    sphereGrow = std::max(0.0, object.detector->spheresReachFromBoundsCentre() - object.radius);
+    boxGrow = object.detector->spheresReachBeyondBounds();
   }
   sphereGrow_[i] = sphereGrow * (1.0 + 1e-9) + 1e-12;
   object.boxGrow = boxGrow * (1.0 + 1e-9) + 1e-12;

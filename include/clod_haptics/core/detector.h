@@ -99,6 +99,14 @@ class ClodDetector {
   const std::shared_ptr<const ClodSphereSet>& spheres() const { return spheres_; }
   /** \brief The fast-level strategy in use. */
   FastLevel fastLevel() const { return fastLevel_; }
+  /**
+   * \brief How far the level's spheres reach (in the mesh's local frame, measured once at construction, off the
+   * haptic path): the largest |centre - c| + radius over the spheres, c the centre of the mesh's bounds, and the
+   * largest distance from the bounds to a sphere's centre plus its radius. What spheres mode needs beyond the
+   * mesh's own bounds (SceneDetector's rejection tests).
+   */
+  double spheresReachFromBoundsCentre() const noexcept { return reachFromCentre_; }
+  double spheresReachBeyondBounds() const noexcept { return reachBeyondBox_; }
   /** \brief The largest pointer radius the grid serves (0 without a grid): larger radii take the hierarchy. */
   double gridRadius() const noexcept { return grid_.empty() ? 0.0 : grid_.radius(); }
   /**
@@ -151,6 +159,7 @@ class ClodDetector {
   const Vec3* vertices_ = nullptr;
   const Vec3* normals_ = nullptr;
   Vec3 origin_ = Vec3::Zero();  // the mesh's local origin: p - origin_ in, point + origin_ out
+  double reachFromCentre_ = 0.0, reachBeyondBox_ = 0.0;  // see spheresReachFromBoundsCentre()
 };
 
 }  // namespace clod_haptics
