@@ -178,7 +178,7 @@ fuzz: fuzz-build
 	  $(ROOT)/fuzz/regressions/fuzz_query $(ROOT)/fuzz/regressions/fuzz_mesh_load
 	@s=$(FUZZ_DIR)/corpus/fuzz_mesh_load; d=$(ROOT)/test/data; \
 	  for f in cube.off:04 cube.obj:05 cube_quads.obj:01 cube_ascii.stl:06 cube_binary.stl:02 cube_ascii.ply:07 \
-	           cube_binary.ply:03 cube_with_zero_area.obj:15 cube.dae:04; do \
+	           cube_binary.ply:03 cube_with_zero_area.obj:15 nonconvex_polygons.obj:01 cube.dae:04; do \
 	    n=$${f%%:*}; printf "\\x$${f#*:}" > $$s/seed_$$n; cat $$d/$$n >> $$s/seed_$$n; done; \
 	  printf '\x00' > $$s/seed_degtri_sliding.off; cat $(SHARED_DIR)/data/meshes/degtri_sliding.off >> $$s/seed_degtri_sliding.off 2>/dev/null; true
 	@status=0; for t in $(FUZZ_TARGETS); do \
