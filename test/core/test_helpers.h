@@ -14,6 +14,8 @@
 #include <thread>
 #include <vector>
 
+#include <unistd.h>
+
 #include "clod_haptics/core/mesh.h"
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/sphere_set.h"
@@ -22,6 +24,22 @@
 namespace clod_test {
 
 using namespace clod_haptics;
+
+/** \brief A fixture with a fresh directory of its own (per process and test), removed after the test. */
+class TempDirTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("clod_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ec;
+    std::filesystem::remove_all(dir_, ec);
+  }
+  std::filesystem::path dir_;
+};
 
 /** \brief Path of a fixture in the repository's test/data. */
 inline std::string testData(const std::string& name) { return std::string(CLOD_TEST_DATA_DIR) + "/" + name; }

@@ -487,13 +487,8 @@ void writePolygon(const std::string& path, const std::vector<Vec3>& corners) {
   std::fclose(f);
 }
 
-class PolygonFiles : public ::testing::Test {
+class PolygonFiles : public clod_test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() / ("clod_polygons_" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir_);
-  }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
   std::string write(const std::string& name, const std::vector<Vec3>& corners) {
     const std::string path = (dir_ / name).string();
     writePolygon(path, corners);
@@ -504,7 +499,6 @@ class PolygonFiles : public ::testing::Test {
     options.orientOutward = false;  // one open polygon: keep the file's winding
     return loadMesh(path, options);
   }
-  std::filesystem::path dir_;
 };
 
 // n - 2 triangles that tile the polygon: their areas add up to its area, each centroid lies inside it and each

@@ -251,15 +251,7 @@ std::vector<Placement> placements() {
   return out;
 }
 
-class LoaderPrecision : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() / ("clod_precision_" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir_);
-  }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
-  std::filesystem::path dir_;
-};
+using LoaderPrecision = clod_test::TempDirTest;
 
 TEST_F(LoaderPrecision, RippledTorusEqualsQuadBruteForceAtEveryOffsetAndScale) {
   const auto unit = rippledTorus();

@@ -20,24 +20,13 @@ namespace {
 
 using namespace clod_haptics;
 
-class SphereSetIo : public ::testing::Test {
+class SphereSetIo : public clod_test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("clod_io_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ec;
-    std::filesystem::remove_all(dir_, ec);
-  }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
   std::string write(const std::string& name, const std::string& text) const {
     std::ofstream(path(name)) << text;
     return path(name);
   }
-  std::filesystem::path dir_;
 };
 
 void expectEqualSets(const ClodSphereSet& a, const ClodSphereSet& b) {
