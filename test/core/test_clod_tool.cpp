@@ -45,18 +45,11 @@ std::string quote(const std::string& s) {
   return q + "'";
 }
 
-class ClodTool : public ::testing::Test {
+class ClodTool : public clod_test::TempDirTest {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("clod_tool_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::create_directories(dir_);
+    TempDirTest::SetUp();
     ASSERT_TRUE(std::filesystem::exists(CLOD_TOOL_PATH)) << CLOD_TOOL_PATH;
-  }
-  void TearDown() override {
-    std::error_code ec;
-    std::filesystem::remove_all(dir_, ec);
   }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
 
@@ -116,8 +109,6 @@ class ClodTool : public ::testing::Test {
     std::ofstream out(path(name), std::ios::binary);
     out << text;
   }
-
-  std::filesystem::path dir_;
 };
 
 // The integer value of "key": N in a one-line JSON object.
