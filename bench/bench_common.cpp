@@ -3,12 +3,14 @@
 #include <x86intrin.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <limits>
 #include <map>
 #include <sstream>
+#include <stdexcept>
 #include <thread>
 #include <unordered_map>
 
@@ -188,6 +190,108 @@ TriangleMesh subdivide(const TriangleMesh& mesh) {
   TriangleMesh out = clod_haptics::makeMesh(std::move(vertices), std::move(triangles), mesh.name);
   out.scale = mesh.scale;
   out.offset = mesh.offset;
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+namespace {
+// Turns every triangle outward, seen from `centre` (right for a surface star-shaped around it).
+void windOutward(const std::vector<Vec3>& vertices, const Vec3& centre, std::vector<clod_haptics::Triangle>& triangles) {
+  for (auto& t : triangles) {
+    const Vec3 &a = vertices[t[0]], &b = vertices[t[1]], &c = vertices[t[2]];
+    if ((b - a).cross(c - a).dot((a + b + c) / 3.0 - centre) < 0.0) std::swap(t[1], t[2]);
+  }
+}
+}  // namespace
+
+TriangleMesh cubeEllipsoid(const Vec3& axes, const Vec3& centre, int m, const std::string& name) {
+  std::vector<Vec3> vertices;
+  std::vector<clod_haptics::Triangle> triangles;
+  std::map<std::array<int, 3>, std::uint32_t> index;  // lattice point on the cube's surface -> vertex
+  auto vertex = [&](const std::array<int, 3>& key) {
+    const auto it = index.find(key);
+    if (it != index.end()) return it->second;
+    Vec3 c;
+    for (int k = 0; k < 3; ++k) c[k] = std::tan(M_PI / 4.0 * (2.0 * key[k] / m - 1.0));
+    vertices.push_back(centre + axes.cwiseProduct(c.normalized()));
+    return index[key] = static_cast<std::uint32_t>(vertices.size() - 1);
+  };
+  for (int a = 0; a < 3; ++a)
+    for (int side : {0, m})
+      for (int u = 0; u < m; ++u)
+        for (int w = 0; w < m; ++w) {
+          std::array<std::uint32_t, 4> q;  // the cell's corners, in order around it
+          const int du[4] = {0, 1, 1, 0}, dw[4] = {0, 0, 1, 1};
+          for (int k = 0; k < 4; ++k) {
+            std::array<int, 3> key;
+            key[a] = side;
+            key[(a + 1) % 3] = u + du[k];
+            key[(a + 2) % 3] = w + dw[k];
+            q[k] = vertex(key);
+          }
+          triangles.push_back({q[0], q[1], q[2]});
+          triangles.push_back({q[0], q[2], q[3]});
+        }
+  windOutward(vertices, centre, triangles);
+  return clod_haptics::makeMesh(std::move(vertices), std::move(triangles), name);
+}
+
+TriangleMesh ellipsoidWithEdge(const Vec3& axes, const Vec3& centre, double edge, const std::string& name) {
+  const double trial = meanEdge(cubeEllipsoid(axes, centre, 16, name));
+  const int m = std::max(2, static_cast<int>(std::lround(16.0 * trial / edge)));
+  return cubeEllipsoid(axes, centre, m, name);
+}
+
+TriangleMesh refineHalf(const TriangleMesh& mesh, int times, const std::string& name) {
+  if (!mesh.origin.isZero(0.0)) throw std::runtime_error("refineHalf: a mesh with a local origin");
+  const double middle = mesh.bounds().center().x();
+  std::vector<clod_haptics::Triangle> coarse, fine;
+  for (std::size_t t = 0; t < mesh.size(); ++t) (mesh.centroid(t).x() > middle ? fine : coarse).push_back(mesh.triangles[t]);
+  TriangleMesh part = clod_haptics::makeMesh(mesh.vertices, std::move(fine), name);
+  for (int i = 0; i < times; ++i) part = subdivide(part);  // keeps the vertex array as its prefix
+  std::vector<clod_haptics::Triangle> all = std::move(coarse);
+  all.insert(all.end(), part.triangles.begin(), part.triangles.end());
+  return clod_haptics::makeMesh(std::move(part.vertices), std::move(all), name);
+}
+
+TriangleMesh slicedCylinder(const Vec3& centre, double radius, double height, int slices, const std::string& name) {
+  std::vector<Vec3> vertices;
+  for (int i = 0; i < slices; ++i) {
+    const double a = 2.0 * M_PI * i / slices;
+    vertices.push_back(centre + Vec3(radius * std::cos(a), radius * std::sin(a), -0.5 * height));
+    vertices.push_back(centre + Vec3(radius * std::cos(a), radius * std::sin(a), 0.5 * height));
+  }
+  const std::uint32_t bottom = static_cast<std::uint32_t>(vertices.size());
+  vertices.push_back(centre - Vec3(0, 0, 0.5 * height));
+  vertices.push_back(centre + Vec3(0, 0, 0.5 * height));
+  std::vector<clod_haptics::Triangle> triangles;
+  for (int i = 0; i < slices; ++i) {
+    const std::uint32_t b0 = 2 * i, t0 = b0 + 1, b1 = 2 * ((i + 1) % slices), t1 = b1 + 1;
+    triangles.push_back({b0, b1, t1});
+    triangles.push_back({b0, t1, t0});
+    triangles.push_back({bottom, b1, b0});
+    triangles.push_back({bottom + 1, t0, t1});
+  }
+  windOutward(vertices, centre, triangles);
+  return clod_haptics::makeMesh(std::move(vertices), std::move(triangles), name);
+}
+
+double meanEdge(const TriangleMesh& mesh) {
+  double sum = 0.0;
+  for (std::size_t t = 0; t < mesh.size(); ++t)
+    for (int k = 0; k < 3; ++k) sum += (mesh.vertex(t, k) - mesh.vertex(t, (k + 1) % 3)).norm();
+  return mesh.size() ? sum / (3.0 * mesh.size()) : 0.0;
+}
+
+std::vector<double> aspectRatios(const TriangleMesh& mesh) {
+  std::vector<double> out;
+  out.reserve(mesh.size());
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
+    const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
+    const double longest2 = std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
+    const double twiceArea = (b - a).cross(c - a).norm();
+    if (twiceArea > 0.0) out.push_back(longest2 / twiceArea);  // longest / (2 area / longest)
+  }
   return out;
 }
 

@@ -39,12 +39,15 @@ class Peer {
   virtual void startStream() const {}
   /** \brief Wall time of the structure's construction, milliseconds. */
   double buildMs = 0.0;
+  /** \brief The index build alone, milliseconds (Embree: rtcCommitScene; CGAL: build and distance acceleration). */
+  double indexMs = 0.0;
 };
 
 // Peers living in their own translation units (CGAL is header-heavy: compiled once).
 std::unique_ptr<Peer> makeCgalPeer(const TriangleMesh& mesh);
 std::unique_ptr<Peer> makeFclPeer(const TriangleMesh& mesh);
-std::unique_ptr<Peer> makeEmbreePeer(const TriangleMesh& mesh);
+/** \brief Embree on a device of `threads` threads (the query comparisons use 1; the start-up table also 2). */
+std::unique_ptr<Peer> makeEmbreePeer(const TriangleMesh& mesh, int threads = 1);
 
 /**
  * \brief The exact reference, pruned: a uniform grid holds every triangle in the cells its box
@@ -88,6 +91,36 @@ struct Timing {
 
 /** \brief Subdivides every triangle into four at its edge midpoints (shared midpoints: stays closed). */
 TriangleMesh subdivide(const TriangleMesh& mesh);
+
+// Generated models (the contact section): deterministic, in the unit cube's frame, wound outward.
+
+/**
+ * \brief An ellipsoid with semi-axes `axes` around `centre`: a cube's six faces cut into m x m cells at the
+ * tangents of evenly spaced angles (equal-angle cube sphere), projected on the unit sphere and stretched by
+ * the axes. Closed, 12 m^2 triangles.
+ */
+TriangleMesh cubeEllipsoid(const Vec3& axes, const Vec3& centre, int m, const std::string& name);
+
+/** \brief cubeEllipsoid with m chosen so the mean edge is about `edge` (from a trial at m = 16). */
+TriangleMesh ellipsoidWithEdge(const Vec3& axes, const Vec3& centre, double edge, const std::string& name);
+
+/**
+ * \brief The triangles whose centroid lies beyond the middle of the bounds on x, subdivided `times` times
+ * (subdivide(): flat, so the surface is unchanged; T-junctions along the seam), the others kept.
+ */
+TriangleMesh refineHalf(const TriangleMesh& mesh, int times, const std::string& name);
+
+/**
+ * \brief A closed cylinder along z: `slices` side strips, each cut into two triangles of the full height,
+ * and the caps as fans from their centres. Long thin triangles for a fine slicing.
+ */
+TriangleMesh slicedCylinder(const Vec3& centre, double radius, double height, int slices, const std::string& name);
+
+/** \brief Mean length of the triangles' edges (an edge counted once per triangle). */
+double meanEdge(const TriangleMesh& mesh);
+
+/** \brief Aspect ratio of each non-degenerate triangle: its longest edge over the altitude onto that edge. */
+std::vector<double> aspectRatios(const TriangleMesh& mesh);
 
 /** \brief Number of edges not shared by exactly two triangles (0 for a closed manifold mesh). */
 std::size_t openEdges(const TriangleMesh& mesh);

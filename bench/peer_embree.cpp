@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "bench_common.h"
 #include "clod_haptics/core/geometry.h"
@@ -38,9 +39,9 @@ bool visit(RTCPointQueryFunctionArguments* args) {
 
 class EmbreePeer : public Peer {
  public:
-  explicit EmbreePeer(const TriangleMesh& mesh) : mesh_(mesh) {
+  EmbreePeer(const TriangleMesh& mesh, int threads) : mesh_(mesh) {
     const auto t0 = std::chrono::steady_clock::now();
-    device_ = rtcNewDevice("threads=1");
+    device_ = rtcNewDevice(("threads=" + std::to_string(threads)).c_str());
     if (!device_) throw std::runtime_error("embree: rtcNewDevice failed");
     scene_ = rtcNewScene(device_);
     rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
@@ -56,7 +57,9 @@ class EmbreePeer : public Peer {
     rtcCommitGeometry(geometry);
     rtcAttachGeometry(scene_, geometry);
     rtcReleaseGeometry(geometry);
+    const auto c0 = std::chrono::steady_clock::now();
     rtcCommitScene(scene_);
+    indexMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - c0).count();
     buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   }
   ~EmbreePeer() override {
@@ -91,6 +94,8 @@ class EmbreePeer : public Peer {
 
 }  // namespace
 
-std::unique_ptr<Peer> makeEmbreePeer(const TriangleMesh& mesh) { return std::make_unique<EmbreePeer>(mesh); }
+std::unique_ptr<Peer> makeEmbreePeer(const TriangleMesh& mesh, int threads) {
+  return std::make_unique<EmbreePeer>(mesh, threads);
+}
 
 }  // namespace clod_bench
