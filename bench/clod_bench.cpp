@@ -3,7 +3,7 @@
 // the triangle count. Writes CSV files for bench/report.py. A benchmark, never a test.
 //
 //   clod_bench --shared ../shared --out bench/results [--quick] [--meshes a.off,b.off]
-//              [--sections sweep,peers,tightness,growth]
+//              [--sections sweep,peers,tightness,growth,contact]
 
 #include <benchmark/benchmark.h>
 #include <malloc.h>
@@ -19,9 +19,11 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <random>
 #include <set>
 #include <sstream>
@@ -54,7 +56,7 @@ struct Settings {
   std::string shared;
   std::string out;
   std::set<std::string> meshes;  // empty: all
-  std::set<std::string> sections{"sweep", "peers", "tightness", "growth"};
+  std::set<std::string> sections{"sweep", "peers", "tightness", "growth", "contact"};
   double r = 0.005;
   std::vector<double> distances{0.0, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08};
   std::size_t probes = 100000;          // per probe set (near-surface, uniform)
@@ -63,6 +65,7 @@ struct Settings {
   double budgetBrute = 3.0;             // seconds per probe set for the brute-force peer
   std::size_t bruteMax = 2000;          // and at most this many probes
   int rounds = 2;                       // peer comparison: alternate contenders, keep the best median
+  int contactRounds = 3;                // contact section: alternate contenders, keep the lowest mean (and start-up)
   std::size_t mcSamples = 100000;       // tightness: Monte Carlo points per sphere set
   std::size_t surfaceSamples = 200000;  // tightness: surface points for the coverage
   std::size_t growthLimit = 1700000;    // growth: largest subdivided mesh (triangles)
@@ -365,6 +368,7 @@ struct Run {
   std::vector<Vec3> trajectory;  // raw, 1 kHz
   std::string trajectoryNote;
   std::unique_ptr<Csv> build, sweep, peers, tight, growth, checks;
+  std::unique_ptr<Csv> contact, startup, models;  // the contact section
 };
 
 void benchMesh(Run& run, const std::string& path) {
@@ -513,7 +517,9 @@ void benchMesh(Run& run, const std::string& path) {
     peers.back()->buildMs = hierarchyMs;
     peers.push_back(std::make_unique<ClodPeer>(*flat, "clod-flat"));
     peers.back()->buildMs = flatMs;
-    for (auto make : {makeEmbreePeer, makeCgalPeer, makeFclPeer}) {
+    using Make = std::function<std::unique_ptr<Peer>(const TriangleMesh&)>;
+    const std::vector<Make> makers{[](const TriangleMesh& m) { return makeEmbreePeer(m); }, makeCgalPeer, makeFclPeer};
+    for (const Make& make : makers) {
       try {
         peers.push_back(make(mesh));
       } catch (const std::exception& e) {
@@ -711,6 +717,440 @@ std::set<std::string> splitList(const std::string& s) {
   return out;
 }
 
+// ---------------------------------------------------------------------------------------------
+// Contact section (issue 18): the exact query's time on in-contact and free probes apart, and on coherent
+// paths over the surface, ours beside Embree and CGAL in the same run; start-up per triangle. Every
+// shared mesh and generated models (generated here, deterministic; see bench/README.md).
+
+struct ModelMaker {
+  std::string name, kind, source;  // kind: "shared" or "generated"; source: how it was made (no commas)
+  std::function<TriangleMesh()> make;
+};
+
+TriangleMesh loadNormalised(const std::string& path) {
+  MeshLoadOptions options;
+  options.normalize = true;
+  return loadMesh(path, options);
+}
+
+// The generated models: ellipsoids at four edge lengths, uneven density, long thin triangles and (not quick) a
+// subdivided shared mesh of about 1M triangles. Filtered by --meshes like the shared ones.
+std::vector<ModelMaker> generatedModels(const Settings& s, const fs::path& meshDir) {
+  std::vector<ModelMaker> all;
+  const Vec3 axes(0.5, 0.4, 0.3), centre = Vec3::Constant(0.5);
+  const double r = s.r;
+  for (const auto& [label, k] : std::vector<std::pair<std::string, double>>{{"20", 20}, {"5", 5}, {"1", 1}, {"0.1", 0.1}}) {
+    // At 0.1 r a unit-size ellipsoid would hold ~18M triangles: that one is a tenth of the size, centred at 0.25
+    // (where its local origin stays zero: the peers take model coordinates).
+    const bool small = k < 1.0;
+    const Vec3 a = small ? Vec3(0.1 * axes) : axes, c = small ? Vec3::Constant(0.25) : centre;
+    const std::string name = "ellipsoid-e" + label + "r";
+    all.push_back({name, "generated",
+                   std::string("ellipsoid ") + (small ? "0.05x0.04x0.03" : "0.5x0.4x0.3") + " cube-sphere; mean edge " +
+                       label + " r",
+                   [=] { return ellipsoidWithEdge(a, c, k * r, name); }});
+  }
+  all.push_back({"uneven-16x", "generated",
+                 "ellipsoid 0.5x0.4x0.3 at mean edge 10 r; the half x > 0.5 subdivided 4 times (edges 16x shorter)",
+                 [=] { return refineHalf(ellipsoidWithEdge(axes, centre, 10 * r, "uneven-16x"), 4, "uneven-16x"); }});
+  all.push_back({"slivers-cylinder", "generated", "cylinder radius 0.25 height 1; 1000 full-height side strips; fan caps",
+                 [=] { return slicedCylinder(centre, 0.25, 1.0, 1000, "slivers-cylinder"); }});
+  const std::string head = (meshDir / "head.off").string();
+  if (!s.quick && fs::exists(head))
+    all.push_back({"head-x4", "generated", "head.off normalised and subdivided 4 times (subdivide())", [head] {
+                     TriangleMesh m = loadNormalised(head);
+                     for (int i = 0; i < 4; ++i) m = subdivide(m);
+                     return m;
+                   }});
+  std::vector<ModelMaker> kept;
+  for (auto& m : all)
+    if (s.meshes.empty() || s.meshes.count(m.name)) kept.push_back(std::move(m));
+  return kept;
+}
+
+// Ours as the nodes and clod_tool build it: ClodBuilder (the paper's placement, single-link clustering),
+// build(d), the grid detector with gridRadius = r (exact queries). Best of the rounds; that build is kept.
+struct Ours {
+  double placementMs = 0, buildMs = 0, detectorMs = 0;
+  std::shared_ptr<const ClodSphereSet> set;
+  std::unique_ptr<ClodDetector> detector;
+  double totalMs() const { return placementMs + buildMs + detectorMs; }
+};
+
+Ours buildOurs(const std::shared_ptr<const TriangleMesh>& mesh, const Settings& s) {
+  Ours best;
+  for (int round = 0; round < std::max(1, s.contactRounds); ++round) {
+    Ours o;
+    auto t0 = std::chrono::steady_clock::now();
+    const ClodBuilder builder(mesh);
+    o.placementMs = secondsSince(t0) * 1e3;
+    t0 = std::chrono::steady_clock::now();
+    o.set = std::make_shared<const ClodSphereSet>(builder.build(s.reportD));
+    o.buildMs = secondsSince(t0) * 1e3;
+    t0 = std::chrono::steady_clock::now();
+    o.detector = std::make_unique<ClodDetector>(mesh, o.set, FastLevel::Grid, s.r);
+    o.detectorMs = secondsSince(t0) * 1e3;
+    if (!best.detector || o.totalMs() < best.totalMs()) best = std::move(o);
+  }
+  return best;
+}
+
+struct ModelInfo {
+  std::string name, kind;
+  std::size_t triangles = 0, spheres = 0;
+};
+
+// Start-up rows: ours (placement + clustering + grid detector) beside Embree's rtcCommitScene (1 and 2
+// threads) and CGAL's tree build, each the best of the rounds. Returns the 1-thread Embree and CGAL peers.
+std::vector<std::unique_ptr<Peer>> startupRows(Run& run, const ModelInfo& info, const TriangleMesh& mesh, const Ours& ours) {
+  const double tri = static_cast<double>(mesh.size());
+  auto row = [&](const std::string& who, unsigned threads, double ms, double setupMs, double p, double b, double d) {
+    run.startup->row(info.name, info.kind, mesh.size(), who, threads, num(ms), num(ms * 1e6 / tri),
+                     num(tri / (ms * 1e-3)), num(setupMs), num(p), num(b), num(d), info.spheres);
+  };
+  const unsigned ourThreads = std::min(4u, std::max(1u, std::thread::hardware_concurrency()));
+  row("clod-grid", ourThreads, ours.totalMs(), ours.totalMs(), ours.placementMs, ours.buildMs, ours.detectorMs);
+  const std::vector<std::pair<std::string, int>> contenders{{"embree", 1}, {"embree-2t", 2}, {"cgal", 1}};
+  std::vector<std::unique_ptr<Peer>> kept;
+  for (const auto& [who, threads] : contenders) {
+    std::unique_ptr<Peer> best;
+    try {
+      for (int round = 0; round < std::max(1, run.s.contactRounds); ++round) {
+        auto p = who == "cgal" ? makeCgalPeer(mesh) : makeEmbreePeer(mesh, threads);
+        if (!best || p->indexMs < best->indexMs) best = std::move(p);
+      }
+    } catch (const std::exception& e) {
+      std::cout << "  " << who << " failed to build: " << e.what() << "\n";
+      continue;
+    }
+    row(who, threads, best->indexMs, best->buildMs, NAN, NAN, NAN);
+    if (who != "embree-2t") kept.push_back(std::move(best));
+  }
+  return kept;
+}
+
+// A quarter of the probe set: near vertices (even i) and edges (odd i) of triangles drawn uniformly by index,
+// offset in a uniform direction by a distance uniform in [0, maxDistance].
+std::vector<Vec3> featureProbes(const TriangleMesh& mesh, std::size_t n, double maxDistance, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::normal_distribution<double> gauss;
+  std::uniform_int_distribution<std::size_t> pick(0, mesh.size() - 1);
+  std::vector<Vec3> out;
+  out.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t t = pick(rng);
+    const int k = static_cast<int>(rng() % 3);
+    Vec3 base = mesh.vertex(t, k);
+    if (i % 2) base += unit(rng) * (mesh.vertex(t, (k + 1) % 3) - base);
+    Vec3 dir(gauss(rng), gauss(rng), gauss(rng));
+    if (!(dir.norm() > 0.0)) dir = Vec3::UnitX();
+    out.push_back(mesh.toModel(base) + dir.normalized() * (maxDistance * unit(rng)));
+  }
+  return out;
+}
+
+// The probe set: half within 3r of a face (both sides), a quarter near vertices and edges, a quarter uniform in
+// the box grown by r; shuffled, so in-contact and free probes interleave.
+std::vector<Vec3> contactProbeSet(const TriangleMesh& mesh, std::size_t n, double r, std::uint64_t seed) {
+  std::vector<Vec3> out = nearSurfaceProbes(mesh, n / 2, 3 * r, seed);
+  const std::vector<Vec3> feature = featureProbes(mesh, n / 4, 3 * r, seed + 1);
+  const std::vector<Vec3> uniform = uniformProbes(mesh, n - n / 2 - n / 4, r, seed + 2);
+  out.insert(out.end(), feature.begin(), feature.end());
+  out.insert(out.end(), uniform.begin(), uniform.end());
+  std::mt19937_64 rng(seed + 3);
+  std::shuffle(out.begin(), out.end(), rng);
+  return out;
+}
+
+// The coherent paths: 1 kHz samples of a walker sliding over the surface at `step` per sample, and a normal
+// offset of amplitude 2r at kPathHz (the probe goes in and out of contact). The walker moves in sub-steps of at
+// most `subStep` along its heading in the tangent plane, each followed by a return to the nearest surface point
+// (`walker` must reach one sub-step), and turns with a curvature swinging between +-1/kTurnRadius every kTurnWave of
+// arc; it reverses at a border (a sub-step moving less than a quarter of its length).
+constexpr double kPathHz = 2.0, kTurnRadius = 0.05, kTurnWave = 0.3, kModelMetres = 0.15;
+const std::vector<double> kPathSpeeds{0.01, 0.1, 0.5, 2.0};  // m/s on the model scaled to 15 cm
+
+Vec3 faceNormalOr(const TriangleMesh& mesh, const ContactResult& c, const Vec3& fallback) {
+  if (c.triangle < 0) return fallback;
+  const Vec3& n = mesh.normals[static_cast<std::size_t>(c.triangle)];
+  return n.isZero(0.0) ? fallback : n;
+}
+
+Vec3 tangentOf(const Vec3& v, const Vec3& normal) {
+  const Vec3 t = v - v.dot(normal) * normal;
+  return t.norm() > 1e-12 ? Vec3(t.normalized()) : Vec3(normal.unitOrthogonal());
+}
+
+struct Walker {
+  Vec3 q, normal, heading;
+  double arc = 0.0;
+  // One sub-step of length h; false at a border (the heading is reversed).
+  bool move(const TriangleMesh& mesh, const PrunedReference& walker, double h) {
+    const double turn = h / kTurnRadius * std::sin(2.0 * M_PI * arc / kTurnWave);
+    heading = std::cos(turn) * heading + std::sin(turn) * normal.cross(heading);
+    const ContactResult next = walker.query(q + h * heading);
+    const double moved = next.contact ? (next.point - q).norm() : 0.0;
+    if (moved < 0.25 * h) {
+      heading = -heading;
+      return false;
+    }
+    arc += moved;
+    q = next.point;
+    normal = faceNormalOr(mesh, next, normal);
+    heading = tangentOf(heading, normal);
+    return true;
+  }
+};
+
+std::vector<Vec3> surfacePath(const TriangleMesh& mesh, const PrunedReference& walker, double step, double subStep,
+                              std::size_t n, double amplitude, std::uint64_t seed) {
+  Walker w;
+  w.q = nearSurfaceProbes(mesh, 1, 0.0, seed)[0];
+  w.normal = faceNormalOr(mesh, walker.query(w.q), Vec3::UnitZ());
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> gauss;
+  w.heading = tangentOf(Vec3(gauss(rng), gauss(rng), gauss(rng)), w.normal);
+  const int parts = std::max(1, static_cast<int>(std::ceil(step / subStep)));
+  std::vector<Vec3> out;
+  out.reserve(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    out.push_back(w.q + amplitude * std::sin(2.0 * M_PI * kPathHz * 1e-3 * k) * w.normal);
+    for (int j = 0; j < parts; ++j)
+      if (!w.move(mesh, walker, step / parts)) break;
+  }
+  return out;
+}
+
+// What a stream with a QueryCache answers: the stateless reference, and after an answer with the centre inside,
+// the nearest triangle at any depth while the centre stays behind the surface within the bounds
+// (bruteForceSignedQuery's rule; `near` finds it within its radius, brute force beyond).
+std::vector<ContactResult> streamReference(const TriangleMesh& mesh, const std::vector<Vec3>& path,
+                                           const std::vector<ContactResult>& stateless, const PrunedReference& near,
+                                           double r) {
+  std::vector<ContactResult> out = stateless;
+  const Eigen::AlignedBox3d bounds = mesh.bounds();  // O(triangles): once
+  bool inside = false;
+  for (std::size_t i = 0; i < path.size(); ++i) {
+    if (stateless[i].contact) {
+      inside = stateless[i].inside;
+      continue;
+    }
+    if (!inside) continue;
+    ContactResult deep = near.query(path[i]);
+    if (deep.contact) {
+      deep.contact = deep.inside && bounds.contains(mesh.toLocal(path[i]));
+    } else {
+      deep = bruteForceSignedQuery(mesh, path[i], r);
+    }
+    if (deep.contact) out[i] = deep;
+    inside = deep.contact;
+  }
+  return out;
+}
+
+// Every probe timed alone for each contender, the contenders alternating over the rounds; per contender the
+// round with the lowest mean is kept, with its answers.
+struct Timed {
+  std::vector<float> ns;
+  std::vector<Answer> answers;
+  double mean = std::numeric_limits<double>::infinity();
+};
+
+std::map<std::string, Timed> timeContenders(const std::vector<const Peer*>& peers, const std::vector<Vec3>& points,
+                                            const Settings& s) {
+  std::map<std::string, Timed> best;
+  for (int round = 0; round < std::max(1, s.contactRounds); ++round)
+    for (const Peer* peer : peers) {
+      std::vector<Answer> answers(points.size());
+      Timing t = timeEach(
+          points.size(), 1e6, points.size(),
+          [&](std::size_t i) {
+            peer->query(points[i], s.r, answers[i]);
+            benchmark::DoNotOptimize(answers[i]);
+          },
+          [&] { peer->startStream(); });
+      Timed& b = best[peer->name()];
+      if (t.mean < b.mean) b = Timed{std::move(t.ns), std::move(answers), t.mean};
+    }
+  return best;
+}
+
+struct Stats {
+  double mean = NAN, median = NAN, p90 = NAN, p99 = NAN, max = NAN;
+};
+
+Stats statsOf(std::vector<float> v) {
+  Stats st;
+  if (v.empty()) return st;
+  std::sort(v.begin(), v.end());
+  auto at = [&](double q) { return static_cast<double>(v[std::min(v.size() - 1, static_cast<std::size_t>(q * v.size()))]); };
+  double sum = 0.0;
+  for (float x : v) sum += x;
+  st.mean = sum / v.size();
+  st.median = at(0.5);
+  st.p90 = at(0.9);
+  st.p99 = at(0.99);
+  st.max = v.back();
+  return st;
+}
+
+// One contact.csv row: the statistics of the contender's times on the probes `idx`, its answers against `ref`
+// (contact flag; distance and point to 1e-9); prints the first mismatches.
+Stats contactRow(Run& run, const ModelInfo& info, const std::string& cls, const std::string& who, const Timed& t,
+                 const std::vector<Vec3>& points, const std::vector<ContactResult>& ref, const std::vector<std::size_t>& idx) {
+  std::vector<float> ns;
+  ns.reserve(idx.size());
+  std::size_t mismatches = 0, contacts = 0;
+  double maxDiff = 0.0;
+  for (std::size_t i : idx) {
+    ns.push_back(t.ns[i]);
+    const Answer& a = t.answers[i];
+    const ContactResult& f = ref[i];
+    contacts += f.contact;
+    const double dd = a.contact && f.contact ? std::abs(a.distance - f.distance) : 0.0;
+    maxDiff = std::max(maxDiff, dd);
+    if (a.contact == f.contact && (!f.contact || (dd <= 1e-9 && (a.point - f.point).norm() <= 1e-9))) continue;
+    if (++mismatches <= 5)
+      std::cout << "  MISMATCH " << info.name << " " << cls << " " << who << " probe " << i << " (" << points[i].transpose()
+                << "): reference " << f.contact << " d=" << f.distance << ", answer " << a.contact << " d=" << a.distance << "\n";
+  }
+  const Stats st = statsOf(std::move(ns));
+  run.contact->row(info.name, info.kind, info.triangles, info.spheres, cls, who, idx.size(), contacts, num(st.mean),
+                   num(st.median), num(st.p90), num(st.p99), num(st.max), mismatches, num(maxDiff));
+  return st;
+}
+
+void printRatios(const std::string& label, const std::map<std::string, Stats>& st, const std::string& ours) {
+  std::cout << "  " << label << ": " << ours << " mean " << st.at(ours).mean << " p99 " << st.at(ours).p99 << " ns";
+  for (const auto& [who, x] : st)
+    if (who != ours)
+      std::cout << "; " << who << " " << x.mean << " / " << x.p99 << " (x" << x.mean / st.at(ours).mean << " / x"
+                << x.p99 / st.at(ours).p99 << ")";
+  std::cout << "\n" << std::flush;
+}
+
+// The probe set's rows, in-contact and free apart. Returns the number of in-contact probes.
+std::size_t probeRows(Run& run, const ModelInfo& info, const TriangleMesh& mesh, const PrunedReference& reference,
+                      const std::vector<const Peer*>& peers) {
+  const std::vector<Vec3> probes = contactProbeSet(mesh, run.s.probes, run.s.r, 31);
+  const std::vector<ContactResult> ref = reference.queryAll(probes, 2);
+  std::vector<std::size_t> in, out;
+  for (std::size_t i = 0; i < probes.size(); ++i) (ref[i].contact ? in : out).push_back(i);
+  const auto timed = timeContenders(peers, probes, run.s);
+  for (const auto& [cls, idx] : {std::make_pair(std::string("contact"), &in), std::make_pair(std::string("free"), &out)}) {
+    std::map<std::string, Stats> st;
+    for (const Peer* p : peers) st[p->name()] = contactRow(run, info, cls, p->name(), timed.at(p->name()), probes, ref, *idx);
+    printRatios(cls + " (" + std::to_string(idx->size()) + ")", st, "clod-grid");
+  }
+  return in.size();
+}
+
+// The coherent paths' rows, one per speed: the cached contender against the stream's reference, the others
+// against the stateless one; on all the points, and on the shallow ones (without the points where the stream
+// follows the push deeper than r, which only the cached contender answers as contacts).
+void pathRows(Run& run, const ModelInfo& info, const TriangleMesh& mesh, const PrunedReference& reference,
+              const std::vector<const Peer*>& peers) {
+  const Settings& s = run.s;
+  const double subStep = 0.5 * s.r;
+  const PrunedReference walker(mesh, 1.02 * subStep);
+  const PrunedReference deep(mesh, 2.02 * s.r);  // a path point lies within 2r of the surface point it was placed at
+  for (std::size_t k = 0; k < kPathSpeeds.size(); ++k) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const double step = kPathSpeeds[k] * 1e-3 / kModelMetres;
+    const std::vector<Vec3> path = surfacePath(mesh, walker, step, subStep, s.probes, 2 * s.r, 41 + k);
+    const std::vector<ContactResult> stateless = reference.queryAll(path, 2);
+    const std::vector<ContactResult> stream = streamReference(mesh, path, stateless, deep, s.r);
+    std::cout << "  path " << kPathSpeeds[k] << " m/s made and referenced in " << secondsSince(t0) << " s\n";
+    const auto timed = timeContenders(peers, path, s);
+    std::vector<std::size_t> all(path.size()), shallow;
+    std::iota(all.begin(), all.end(), 0);
+    for (std::size_t i : all)
+      if (stream[i].contact == stateless[i].contact) shallow.push_back(i);
+    const std::string cls = "path-" + fmt(kPathSpeeds[k]);
+    for (const auto& [name, idx] : {std::make_pair(cls, &all), std::make_pair(cls + "-shallow", &shallow)}) {
+      std::map<std::string, Stats> st;
+      for (const Peer* p : peers) {
+        const bool cached = p->name() == "clod-grid-cache";
+        st[p->name()] = contactRow(run, info, name, p->name(), timed.at(p->name()), path, cached ? stream : stateless, *idx);
+      }
+      printRatios(name + " (" + std::to_string(idx->size()) + ")", st, "clod-grid-cache");
+    }
+  }
+}
+
+void contactModel(Run& run, const ModelMaker& maker) {
+  const Settings& s = run.s;
+  const auto start = std::chrono::steady_clock::now();
+  const auto mesh = std::make_shared<const TriangleMesh>(maker.make());
+  if (!mesh->origin.isZero(0.0)) throw std::runtime_error("a local origin (the peers take model coordinates)");
+  const std::vector<double> aspect = aspectRatios(*mesh);
+  std::cout << "== contact " << maker.name << ": " << mesh->size() << " triangles, mean edge " << meanEdge(*mesh) / s.r
+            << " r\n" << std::flush;
+  const Ours ours = buildOurs(mesh, s);
+  const ModelInfo info{maker.name, maker.kind, mesh->size(), ours.set->size()};
+  const std::vector<std::unique_ptr<Peer>> others = startupRows(run, info, *mesh, ours);
+  std::cout << "  start-up: ours " << ours.totalMs() << " ms (" << ours.set->size() << " spheres), all at "
+            << secondsSince(start) << " s\n";
+  const ClodPeer grid(*ours.detector, "clod-grid"), cached(*ours.detector, "clod-grid-cache", true);
+  std::vector<const Peer*> peers{&grid};
+  for (const auto& p : others) peers.push_back(p.get());
+  const PrunedReference reference(*mesh, s.r);
+  const std::size_t contacts = probeRows(run, info, *mesh, reference, peers);
+  std::cout << "  probes done at " << secondsSince(start) << " s\n";
+  peers.insert(peers.begin() + 1, &cached);
+  pathRows(run, info, *mesh, reference, peers);
+  run.models->row(info.name, info.kind, "\"" + maker.source + "\"", info.triangles, info.spheres, num(meanEdge(*mesh) / s.r),
+                  num(aspect.empty() ? NAN : *std::min_element(aspect.begin(), aspect.end())),
+                  num(statsOf(std::vector<float>(aspect.begin(), aspect.end())).median), openEdges(*mesh), s.probes,
+                  contacts, s.probes, num(secondsSince(start)));
+  std::cout << "  " << maker.name << " done in " << secondsSince(start) << " s\n" << std::flush;
+}
+
+std::string loadAverage() {
+  std::ifstream in("/proc/loadavg");
+  std::string a, b, c;
+  in >> a >> b >> c;
+  return a + " " + b + " " + c;
+}
+
+void contactSection(Run& run, const std::vector<std::string>& sharedPaths, const fs::path& meshDir) {
+  const Settings& s = run.s;
+  const std::string o = s.out + "/";
+  run.contact = std::make_unique<Csv>(o + "contact.csv",
+                                      "model,kind,triangles,spheres,class,contender,n,ref_contacts,mean_ns,median_ns,"
+                                      "p90_ns,p99_ns,max_ns,mismatches,max_dist_diff");
+  run.startup = std::make_unique<Csv>(o + "startup.csv",
+                                      "model,kind,triangles,contender,threads,ms,ns_per_tri,tri_per_s,setup_ms,"
+                                      "placement_ms,build_ms,detector_ms,spheres");
+  run.models = std::make_unique<Csv>(o + "contact_models.csv",
+                                     "model,kind,source,triangles,spheres,mean_edge_over_r,min_aspect,median_aspect,"
+                                     "open_edges,probes,probe_contacts,path_points,seconds");
+  std::vector<ModelMaker> models;
+  for (const std::string& path : sharedPaths)
+    models.push_back({fs::path(path).filename().string(), "shared", "../shared/data/meshes normalised to the unit cube",
+                      [path] { return loadNormalised(path); }});
+  for (auto& m : generatedModels(s, meshDir)) models.push_back(std::move(m));
+  const std::string loadBefore = loadAverage();
+  const auto start = std::chrono::steady_clock::now();
+  for (const ModelMaker& m : models) {
+    try {
+      contactModel(run, m);
+    } catch (const std::exception& e) {
+      std::cout << "  contact: FAILED on " << m.name << ": " << e.what() << "\n" << std::flush;
+    }
+  }
+  std::ofstream meta(o + "contact_run.csv");
+  const std::time_t now = std::time(nullptr);
+  char stamp[64];
+  std::strftime(stamp, sizeof stamp, "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
+  meta << "key,value\ndate," << stamp << "\ncpu,\"" << cpuName() << "\"\nhardware_threads,"
+       << std::thread::hardware_concurrency() << "\nmode," << (s.quick ? "quick" : "full") << "\nseconds," << secondsSince(start)
+       << "\nloadavg_before," << loadBefore << "\nloadavg_after," << loadAverage() << "\nradius," << s.r << "\nd,"
+       << s.reportD << "\nprobes," << s.probes << "\npath_points," << s.probes << "\nrounds," << s.contactRounds
+       << "\npath_amplitude," << 2 * s.r << "\npath_hz," << kPathHz << "\nmodel_metres," << kModelMetres << "\n";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -737,7 +1177,7 @@ int main(int argc, char** argv) {
       s.sections = splitList(next());
     } else {
       std::cerr << "usage: clod_bench --shared DIR --out DIR [--quick] [--meshes a.off,b.off] "
-                   "[--sections sweep,peers,tightness,growth]\n";
+                   "[--sections sweep,peers,tightness,growth,contact]\n";
       return 2;
     }
   }
@@ -752,6 +1192,7 @@ int main(int argc, char** argv) {
     s.budgetBrute = 0.5;
     s.bruteMax = 300;
     s.rounds = 1;
+    s.contactRounds = 1;
     s.mcSamples = 20000;
     s.surfaceSamples = 30000;
     s.growthLimit = 120000;
@@ -865,13 +1306,15 @@ int main(int argc, char** argv) {
     }
   }
 
-  for (const std::string& path : meshes) {
+  const bool perMesh = has(s, "sweep") || has(s, "peers") || has(s, "tightness");
+  for (const std::string& path : perMesh ? meshes : std::vector<std::string>{}) {
     try {
       benchMesh(run, path);
     } catch (const std::exception& e) {  // one mesh failing (a core change, a bad file) must not stop the others
       std::cout << "  FAILED on " << path << ": " << e.what() << "\n" << std::flush;
     }
   }
+  if (has(s, "contact")) contactSection(run, meshes, meshDir);
   std::cout << "clod_bench: done in " << secondsSince(start) << " s\n";
   return 0;
 }
