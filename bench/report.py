@@ -2,8 +2,9 @@
 """Turns the CSV files of clod_bench into bench/results/report.md and PNG plots.
 
 Usage: python3 bench/report.py RESULTS_DIR
-Reads run.csv, build.csv, sweep.csv, peers.csv, tightness.csv, growth.csv, reference_check.csv
-(any missing file just drops its section). Ratios are always between figures of the same run.
+Reads run.csv, build.csv, sweep.csv, peers.csv, tightness.csv, growth.csv, reference_check.csv and the
+contact section's contact.csv, startup.csv, contact_run.csv (any missing file just drops its section).
+Ratios are always between figures of the same run.
 """
 import csv
 import math
@@ -429,9 +430,12 @@ def main():
         plot_growth(out, growth)
         md.append("![growth](growth.png)\n")
 
+    md += contact_section(out)
+
     md.append("## Files\n")
     md.append("`build.csv` (levels), `sweep.csv` (every mesh x d x fast level x mode x probe set: times and errors), "
-              "`peers.csv`, `tightness.csv`, `growth.csv`, `reference_check.csv`, `run.csv` (settings and machine).\n")
+              "`peers.csv`, `tightness.csv`, `growth.csv`, `reference_check.csv`, `run.csv` (settings and machine); "
+              "the contact section: `contact.csv`, `startup.csv`, `contact_models.csv`, `contact_run.csv`.\n")
     with open(os.path.join(out, "report.md"), "w") as fo:
         fo.write("\n".join(md))
     print("report written:", os.path.join(out, "report.md"))
@@ -631,6 +635,151 @@ def plot_growth(out, growth):
     fig.tight_layout()
     fig.savefig(os.path.join(out, "growth.png"), dpi=90)
     plt.close(fig)
+
+
+# ---------------------------------------------------------------------- contact section (issue 18)
+SPEEDS = ["0.01", "0.1", "0.5", "2"]
+
+
+def ratio(a, b):
+    a, b = num(a), num(b)
+    return a / b if b > 0 else float("nan")
+
+
+def contact_index(contact):
+    """(model, class, contender) -> row."""
+    return {(r["model"], r["class"], r["contender"]): r for r in contact}
+
+
+def contact_preamble(crun, contact):
+    bad = sum(int(r["mismatches"]) for r in contact)
+    return (
+        f"Run {crun.get('date', '?')} ({crun.get('mode', '?')} mode, {crun.get('seconds', '?')} s), "
+        f"{crun.get('cpu', '?')}, {crun.get('hardware_threads', '?')} hardware threads; load average "
+        f"{crun.get('loadavg_before', '?')} before and {crun.get('loadavg_after', '?')} after (1, 5, 15 min): the "
+        "machine is shared, so the absolute times drift; the ratios are measured contender after contender on the "
+        f"same probes ({crun.get('rounds', '?')} alternating rounds, the round with the lowest mean kept per "
+        "contender).\n\n"
+        f"r = {crun.get('radius', '?')}, d = {crun.get('d', '?')}. Ours: `clod-grid` (`ClodDetector`, "
+        "`FastLevel::Grid`, gridRadius = r, exact mode, as the nodes and clod_tool build it), and `clod-grid-cache` "
+        "(the same with one `QueryCache` per path). Probes per model: "
+        f"{crun.get('probes', '?')}: half within 3r of a face (both sides), a quarter near vertices and edges, a "
+        "quarter uniform in the box grown by r, classified in contact or free by the exact reference. Every answer "
+        f"is checked against the exact reference (contact flag, distance and point to 1e-9): **{bad} mismatches** "
+        "over all rows. Ratios are peer / ours: above 1 ours is faster. Models: `contact_models.csv`; "
+        "bench/README.md says how they are generated.\n")
+
+
+def contact_probe_rows(models, idx):
+    rows = []
+    for m in models:
+        def g(cls, who, col):
+            r = idx.get((m, cls, who))
+            return r[col] if r else "nan"
+        rows.append([
+            m, g("contact", "clod-grid", "triangles"), g("contact", "clod-grid", "n"),
+            f"{f(g('contact', 'clod-grid', 'mean_ns'))} / {f(g('contact', 'clod-grid', 'p99_ns'))}",
+            f"{f(g('contact', 'embree', 'mean_ns'))} / {f(g('contact', 'embree', 'p99_ns'))}",
+            f"**{f(ratio(g('contact', 'embree', 'mean_ns'), g('contact', 'clod-grid', 'mean_ns')))}** / "
+            f"{f(ratio(g('contact', 'embree', 'p99_ns'), g('contact', 'clod-grid', 'p99_ns')))}",
+            f"{f(ratio(g('contact', 'cgal', 'mean_ns'), g('contact', 'clod-grid', 'mean_ns')))} / "
+            f"{f(ratio(g('contact', 'cgal', 'p99_ns'), g('contact', 'clod-grid', 'p99_ns')))}",
+            f"{f(g('free', 'clod-grid', 'mean_ns'))} / {f(g('free', 'clod-grid', 'p99_ns'))}",
+            f"{f(ratio(g('free', 'embree', 'mean_ns'), g('free', 'clod-grid', 'mean_ns')))} / "
+            f"{f(ratio(g('free', 'embree', 'p99_ns'), g('free', 'clod-grid', 'p99_ns')))}",
+            f"{f(ratio(g('free', 'cgal', 'mean_ns'), g('free', 'clod-grid', 'mean_ns')))} / "
+            f"{f(ratio(g('free', 'cgal', 'p99_ns'), g('free', 'clod-grid', 'p99_ns')))}",
+        ])
+    return rows
+
+
+def contact_path_rows(models, idx):
+    rows = []
+    for m in models:
+        for sp in SPEEDS:
+            cls = "path-" + sp
+            c, g, e, cg = (idx.get((m, cls, w)) for w in ["clod-grid-cache", "clod-grid", "embree", "cgal"])
+            sc, se = idx.get((m, cls + "-shallow", "clod-grid-cache")), idx.get((m, cls + "-shallow", "embree"))
+            if not (c and g and e):
+                continue
+            deep = 1.0 - num(sc["n"]) / num(c["n"]) if sc else float("nan")
+            rows.append([
+                m, sp, f"{100 * deep:.0f}%",
+                f"{f(c['mean_ns'])} / {f(c['p99_ns'])}", f"{f(g['mean_ns'])} / {f(g['p99_ns'])}",
+                f"{f(e['mean_ns'])} / {f(e['p99_ns'])}",
+                f"{f(ratio(e['mean_ns'], c['mean_ns']))} / {f(ratio(e['p99_ns'], c['p99_ns']))}",
+                f"{f(ratio(e['mean_ns'], g['mean_ns']))} / {f(ratio(e['p99_ns'], g['p99_ns']))}",
+                f"{f(ratio(se['mean_ns'], sc['mean_ns']))} / {f(ratio(se['p99_ns'], sc['p99_ns']))}" if sc and se else "-",
+                f"{f(ratio(cg['mean_ns'], c['mean_ns']))} / {f(ratio(cg['p99_ns'], c['p99_ns']))}" if cg else "-",
+            ])
+    return rows
+
+
+def contact_summary(models, idx):
+    rs = [ratio(idx[(m, "contact", "embree")]["mean_ns"], idx[(m, "contact", "clod-grid")]["mean_ns"])
+          for m in models if (m, "contact", "embree") in idx and (m, "contact", "clod-grid") in idx]
+    rs = [x for x in rs if x > 0]
+    if not rs:
+        return ""
+    gm = math.exp(sum(math.log(x) for x in rs) / len(rs))
+    return (f"In contact, Embree / ours by the mean: at least 3 on {sum(x >= 3 for x in rs)} of {len(rs)} models, "
+            f"above 1 on {sum(x > 1 for x in rs)}; from {f(min(rs))} to {f(max(rs))}, geometric mean {f(gm)}.\n")
+
+
+def startup_rows(models, startup):
+    by = {(r["model"], r["contender"]): r for r in startup}
+    rows = []
+    for m in models:
+        o, e, e2, c = (by.get((m, w)) for w in ["clod-grid", "embree", "embree-2t", "cgal"])
+        if not o:
+            continue
+        rows.append([
+            m, o["triangles"], o["spheres"], f(o["ms"]), f(o["ns_per_tri"]), f(o["tri_per_s"]),
+            f"{f(o['placement_ms'])} / {f(o['build_ms'])} / {f(o['detector_ms'])}",
+            f"{f(e['ms'])} ({f(e['tri_per_s'])})" if e else "-",
+            f"{f(e2['ms'])} ({f(e2['tri_per_s'])})" if e2 else "-",
+            f"{f(c['ms'])} ({f(c['tri_per_s'])})" if c else "-",
+            f(ratio(e["ms"], o["ms"])) if e else "-", f(ratio(c["ms"], o["ms"])) if c else "-",
+        ])
+    return rows
+
+
+def contact_section(out):
+    """The "In contact and free" and "Start-up" sections, from contact.csv, startup.csv and contact_run.csv."""
+    contact, startup = read(out, "contact.csv"), read(out, "startup.csv")
+    if not contact and not startup:
+        return []
+    crun = {r["key"]: r["value"] for r in read(out, "contact_run.csv")}
+    models = []
+    for r in contact + startup:
+        if r["model"] not in models:
+            models.append(r["model"])
+    idx = contact_index(contact)
+    md = ["## In contact and free\n", contact_preamble(crun, contact), contact_summary(models, idx)]
+    md.append(table(["model", "triangles", "in contact", "ours mean / p99 ns", "Embree mean / p99 ns",
+                     "Embree/ours mean / p99", "CGAL/ours mean / p99", "free: ours mean / p99 ns",
+                     "free: Embree/ours", "free: CGAL/ours"], contact_probe_rows(models, idx)))
+    md.append("### Coherent paths\n")
+    md.append(
+        "A walker slides over the surface at 0.01, 0.1, 0.5 and 2 m/s (the model scaled to 15 cm, 1 kHz), the probe "
+        f"offset along the normal by {crun.get('path_amplitude', '2r')} x sin(2 pi {crun.get('path_hz', '2')} Hz t). "
+        "`deep`: the share of points where the centre is more than r behind the surface after an inside answer: "
+        "the cached stream follows the push there (a contact, a deeper search), the stateless contenders answer "
+        "free. `shallow`: the ratio without those points (the same question for everyone). Ratios "
+        "mean / p99.\n")
+    md.append(table(["model", "m/s", "deep", "cache mean / p99 ns", "no cache mean / p99 ns", "Embree mean / p99 ns",
+                     "Embree/cache", "Embree/no cache", "shallow: Embree/cache", "CGAL/cache"],
+                    contact_path_rows(models, idx)))
+    md.append("## Start-up\n")
+    md.append(
+        "Load or generation excluded. Ours: `ClodBuilder` (placement) + `build(d)` + the grid detector, on up to 4 "
+        "threads (2 here); Embree: `rtcCommitScene` alone (build quality high, as the query peer), on 1 and 2 "
+        "threads; CGAL: the AABB tree's build and `accelerate_distance_queries` (1 thread). Best of the rounds. "
+        "Ratios: the peer's time / ours (below 1 the peer starts faster).\n")
+    md.append(table(["model", "triangles", "spheres", "ours ms", "ns/tri", "tri/s", "placement / build / detector ms",
+                     "Embree 1t ms (tri/s)", "Embree 2t ms (tri/s)", "CGAL ms (tri/s)", "Embree/ours",
+                     "CGAL/ours"], startup_rows(models, startup)))
+    return md
 
 
 if __name__ == "__main__":
