@@ -58,6 +58,42 @@ double toDouble(const std::string& text, std::size_t lineNo) {
   return v;
 }
 
+// One "  - {centre: [x, y, z], radius: r, triangles: [a, b, ...]}" line, appended to set; where prefixes errors.
+void readSphereLine(const std::string& line, const std::string& where, ClodSphereSet& set) {
+  double x, y, z, r;
+  int used = 0;
+  if (std::sscanf(line.c_str(), "  - {centre: [%lf, %lf, %lf], radius: %lf, triangles: [%n", &x, &y, &z, &r, &used) !=
+          4 ||
+      used == 0)
+    throw FormatError(where + "malformed sphere");
+  if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) throw FormatError(where + "non-finite centre");
+  if (!std::isfinite(r) || r < 0.0) throw FormatError(where + "radius must be finite and >= 0");
+  set.centres.emplace_back(x, y, z);
+  set.radii.push_back(r);
+  std::istringstream list(line.substr(static_cast<std::size_t>(used)));
+  std::string item;
+  bool closed = false;
+  while (std::getline(list, item, ',')) {
+    const std::size_t end = item.find(']');
+    std::string number = item.substr(0, end);
+    number.erase(0, number.find_first_not_of(' '));
+    number.erase(number.find_last_not_of(' ') + 1);
+    if (!number.empty()) {
+      if (number.find_first_not_of("0123456789") != std::string::npos || number.size() > 10)
+        throw FormatError(where + "triangle index '" + number + "' is not an unsigned integer");
+      const unsigned long long index = std::stoull(number);
+      if (index > 0xffffffffull) throw FormatError(where + "triangle index " + number + " out of range");
+      set.triangles.push_back(static_cast<std::uint32_t>(index));
+    }
+    if (end != std::string::npos) {
+      closed = true;
+      break;
+    }
+  }
+  if (!closed) throw FormatError(where + "unterminated triangle list");
+  set.offsets.push_back(static_cast<std::uint32_t>(set.triangles.size()));
+}
+
 }  // namespace
 
 ClodSphereSet readSphereSetYaml(const std::string& path) {
@@ -103,40 +139,7 @@ ClodSphereSet readSphereSetYaml(const std::string& path) {
   if (line != "spheres:") throw FormatError(path + ": line " + std::to_string(lineNo) + ": expected 'spheres:'");
   while (std::getline(in, line)) {
     ++lineNo;
-    if (line.empty()) continue;
-    double x, y, z, r;
-    int used = 0;
-    if (std::sscanf(line.c_str(), "  - {centre: [%lf, %lf, %lf], radius: %lf, triangles: [%n", &x, &y, &z, &r, &used) !=
-            4 ||
-        used == 0)
-      throw FormatError(path + ": line " + std::to_string(lineNo) + ": malformed sphere");
-    const std::string where = path + ": line " + std::to_string(lineNo) + ": ";
-    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) throw FormatError(where + "non-finite centre");
-    if (!std::isfinite(r) || r < 0.0) throw FormatError(where + "radius must be finite and >= 0");
-    set.centres.emplace_back(x, y, z);
-    set.radii.push_back(r);
-    std::istringstream list(line.substr(static_cast<std::size_t>(used)));
-    std::string item;
-    bool closed = false;
-    while (std::getline(list, item, ',')) {
-      const std::size_t end = item.find(']');
-      std::string number = item.substr(0, end);
-      number.erase(0, number.find_first_not_of(' '));
-      number.erase(number.find_last_not_of(' ') + 1);
-      if (!number.empty()) {
-        if (number.find_first_not_of("0123456789") != std::string::npos || number.size() > 10)
-          throw FormatError(where + "triangle index '" + number + "' is not an unsigned integer");
-        const unsigned long long index = std::stoull(number);
-        if (index > 0xffffffffull) throw FormatError(where + "triangle index " + number + " out of range");
-        set.triangles.push_back(static_cast<std::uint32_t>(index));
-      }
-      if (end != std::string::npos) {
-        closed = true;
-        break;
-      }
-    }
-    if (!closed) throw FormatError(where + "unterminated triangle list");
-    set.offsets.push_back(static_cast<std::uint32_t>(set.triangles.size()));
+    if (!line.empty()) readSphereLine(line, path + ": line " + std::to_string(lineNo) + ": ", set);
   }
   if (triangleCount > 0)
     for (std::uint32_t t : set.triangles)
