@@ -4,6 +4,11 @@
 #include <cstdio>
 #include <fstream>
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/sphere_cache.h"
 
@@ -58,13 +63,18 @@ std::string readFileBytes(const std::string& path, std::vector<char>& bytes) {
 
 ByteReader openCacheFile(const std::vector<char>& bytes, const CacheMagic& magic, std::uint32_t version,
                          const char* kind, const std::string& path) {
-  const ByteReader whole(bytes.data(), bytes.size(), kind, path);
-  std::uint64_t stored;
-  if (bytes.size() < sizeof(CacheMagic) + sizeof(stored)) whole.fail("too short to be a cache file");
-  std::memcpy(&stored, bytes.data() + bytes.size() - sizeof(stored), sizeof(stored));
-  if (fnv1a64(bytes.data(), bytes.size() - sizeof(stored)) != stored) whole.fail("checksum mismatch (corrupt file)");
+  return openCacheFile(bytes.data(), bytes.size(), magic, version, kind, path);
+}
 
-  ByteReader body(bytes.data(), bytes.size() - sizeof(stored), kind, path);
+ByteReader openCacheFile(const char* data, std::size_t size, const CacheMagic& magic, std::uint32_t version,
+                         const char* kind, const std::string& path) {
+  const ByteReader whole(data, size, kind, path);
+  std::uint64_t stored;
+  if (size < sizeof(CacheMagic) + sizeof(stored)) whole.fail("too short to be a cache file");
+  std::memcpy(&stored, data + size - sizeof(stored), sizeof(stored));
+  if (fnv1a64(data, size - sizeof(stored)) != stored) whole.fail("checksum mismatch (corrupt file)");
+
+  ByteReader body(data, size - sizeof(stored), kind, path);
   char found[sizeof(CacheMagic)];
   body.read(found, sizeof(found), "the magic");
   if (std::memcmp(found, magic, sizeof(CacheMagic)) != 0) {
@@ -75,6 +85,36 @@ ByteReader openCacheFile(const std::vector<char>& bytes, const CacheMagic& magic
     body.fail("format version " + std::to_string(foundVersion) + ", expected " + std::to_string(version));
   }
   return body;
+}
+
+MappedFile::~MappedFile() {
+  if (mapping_ != nullptr) ::munmap(mapping_, size_);
+}
+
+std::string MappedFile::map(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return "cannot open it";
+  struct stat st;
+  if (::fstat(fd, &st) != 0 || st.st_size < 0) {
+    ::close(fd);
+    return "cannot read its size";
+  }
+  size_ = static_cast<std::size_t>(st.st_size);
+  if (size_ == 0) {  // mmap refuses an empty range; an empty file is "too short" for openCacheFile
+    ::close(fd);
+    data_ = "";
+    return {};
+  }
+  void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
+  ::close(fd);  // the mapping keeps the file
+  if (p == MAP_FAILED) {
+    size_ = 0;
+    return "mmap failed";
+  }
+  ::madvise(p, size_, MADV_SEQUENTIAL);
+  mapping_ = p;
+  data_ = static_cast<const char*>(p);
+  return {};
 }
 
 std::string hex64(std::uint64_t v) {

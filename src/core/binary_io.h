@@ -115,6 +115,30 @@ std::string readFileBytes(const std::string& path, std::vector<char>& bytes);
  */
 ByteReader openCacheFile(const std::vector<char>& bytes, const CacheMagic& magic, std::uint32_t version,
                          const char* kind, const std::string& path);
+/** \brief The same over [data, data + size) (a MappedFile). */
+ByteReader openCacheFile(const char* data, std::size_t size, const CacheMagic& magic, std::uint32_t version,
+                         const char* kind, const std::string& path);
+
+/**
+ * \brief A whole file mapped read-only into memory (mmap), unmapped on destruction: large cache files are read
+ * straight from the page cache, with no copy into a buffer first.
+ */
+class MappedFile {
+ public:
+  MappedFile() = default;
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+  ~MappedFile();
+  /** \brief Maps path; returns empty, or why it could not ("cannot open it", "cannot read its size", "mmap failed"). */
+  std::string map(const std::string& path);
+  const char* data() const { return data_; }
+  std::size_t size() const { return size_; }
+
+ private:
+  const char* data_ = nullptr;
+  std::size_t size_ = 0;
+  void* mapping_ = nullptr;
+};
 
 /** \brief The 16 lower-case hex digits of v, for cache file names. */
 std::string hex64(std::uint64_t v);

@@ -139,7 +139,7 @@ void buildTriangleTrees(const TriangleMesh& m, const ClodSphereSet& s, double pa
 }  // namespace
 
 ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
-                           FastLevel fastLevel, double gridRadius)
+                           FastLevel fastLevel, double gridRadius, const GridSource& gridSource)
     : mesh_(std::move(mesh)), spheres_(std::move(spheres)), fastLevel_(fastLevel), id_(nextDetectorId()) {
   const TriangleMesh& m = *mesh_;
   const ClodSphereSet& s = *spheres_;
@@ -175,7 +175,12 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   // The grid last: its construction peak then meets only the trees kept, not their build's temporaries.
   if (fastLevel_ == FastLevel::Grid) {
     const double radius = gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * bounds.diagonal().norm();
-    if (radius > 0.0) grid_ = CellGrid(m, s, radius);
+    if (radius > 0.0) {
+      grid_ = gridSource ? gridSource(radius) : CellGrid(m, s, radius);
+      if (grid_.radius() != radius)
+        throw InvalidParameter("ClodDetector: the grid source gave a grid of radius " + std::to_string(grid_.radius()) +
+                               ", expected " + std::to_string(radius));
+    }
   }
 }
 

@@ -12,6 +12,7 @@ namespace clod_haptics {
 SceneAssets::SceneAssets(std::shared_ptr<SphereSetCache> cache, FastLevel fastLevel, double gridRadius,
                          bool keepBuilders, std::shared_ptr<const Clustering> clustering)
     : cache_(std::move(cache)),
+      gridCache_(cache_ ? std::make_shared<CellGridCache>(cache_->directory()) : nullptr),
       clustering_(clustering ? std::move(clustering) : std::make_shared<const SingleLinkClustering>()),
       fastLevel_(fastLevel),
       gridRadius_(gridRadius),
@@ -171,7 +172,18 @@ std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<con
   }
   auto set = spheresLocked(mesh, distance, out);
   const auto start = std::chrono::steady_clock::now();
-  auto detector = std::make_shared<const ClodDetector>(mesh, set, fastLevel, gridRadius);
+  ClodDetector::GridSource gridSource;
+  if (gridCache_ && fastLevel == FastLevel::Grid) {
+    gridSource = [&](double radius) {
+      GridCacheKey gridKey;
+      gridKey.meshHash = hashLocked(mesh);
+      gridKey.distance = distance;
+      gridKey.setHash = sphereSetHash(*set);
+      gridKey.radius = radius;
+      return gridCache_->getOrBuild(*mesh, gridKey, [&] { return CellGrid(*mesh, *set, radius); }, &out.grid);
+    };
+  }
+  auto detector = std::make_shared<const ClodDetector>(mesh, set, fastLevel, gridRadius, gridSource);
   out.detectorMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   // Grids of the same level for another radius that only this map holds: a radius change left them behind.
   for (auto it = levels_.begin(); it != levels_.end();) {

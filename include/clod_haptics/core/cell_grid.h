@@ -18,6 +18,9 @@ namespace clod_haptics {
 
 namespace detail {
 
+class ByteReader;
+class ByteWriter;
+
 /**
  * \brief A malloc'd array of trivially copyable items that grows and shrinks with realloc: for large
  * blocks glibc moves the pages (mremap) instead of copying, so growing or trimming never holds the old
@@ -28,6 +31,8 @@ class ReallocArray {
   static_assert(std::is_trivially_copyable<T>::value, "ReallocArray holds trivially copyable items");
 
  public:
+  using value_type = T;
+
   ReallocArray() = default;
   ReallocArray(const ReallocArray& o) {
     reserve(o.size_);
@@ -177,6 +182,20 @@ class CellGrid {
   std::size_t entries() const { return entries_.size() - cellCount_; }
   /** \brief Bytes held by the grid's arrays. */
   std::size_t bytes() const;
+
+  /**
+   * \brief Appends the grid to a cache file (grid_cache.h): its scalars, the array sizes, then each array as it
+   * lies in memory, so readFrom copies each array in one piece.
+   */
+  void writeTo(detail::ByteWriter& out) const;
+  /**
+   * \brief Reads a grid that writeTo wrote, checked so that no lookup can leave its arrays: finite scalars,
+   * sizes that fill the file, every cell header and its candidates inside the entries, every candidate's
+   * triangle below triangles (the mesh's count), the dense index's ranks or every hashed slot's header and
+   * probe chain consistent. A grid that passes answers exactly as the one written.
+   * \throws FormatError (through in.fail) naming the first check that failed.
+   */
+  static CellGrid readFrom(detail::ByteReader& in, std::size_t triangles);
 
   /** \brief What the index keeps per non-empty cell for the proof of no contact (8 bytes). */
   struct CellRef {

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -58,10 +59,15 @@ class ClodDetector {
    * \brief Prepares the flat arrays and trees; the mesh and set are kept alive by the pointers.
    * \param gridRadius for FastLevel::Grid, the largest pointer radius the grid serves (larger ones use
    * the hierarchy); 0 picks 1% of the model's diagonal.
-   * \throws SphereSetMismatch when the set does not fit the mesh (fitProblem): built for another mesh or scale.
+   * \param gridSource for FastLevel::Grid, where the grid comes from instead of a build (a disk cache, see
+   * CellGridCache): called once with the radius (after the 0 default is resolved), it returns the grid that
+   * CellGrid(*mesh, *spheres, radius) would build, or builds it. Empty: the grid is built here.
+   * \throws SphereSetMismatch when the set does not fit the mesh (fitProblem): built for another mesh or scale;
+   * InvalidParameter when gridSource returns a grid of another radius; whatever gridSource throws.
    */
+  using GridSource = std::function<CellGrid(double radius)>;
   ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
-               FastLevel fastLevel = FastLevel::Grid, double gridRadius = 0.0);
+               FastLevel fastLevel = FastLevel::Grid, double gridRadius = 0.0, const GridSource& gridSource = {});
 
   /**
    * \brief Answers whether the pointer (centre p, radius r) touches the mesh, and where. p and the contact

@@ -11,6 +11,7 @@
 
 #include "clod_haptics/core/clustering.h"
 #include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/grid_cache.h"
 #include "clod_haptics/core/mesh_cache.h"
 #include "clod_haptics/core/mesh.h"
 #include "clod_haptics/core/mesh_loader.h"
@@ -37,6 +38,11 @@ class SceneAssets {
     double detectorMs = 0.0;   ///< time to construct the ClodDetector
     bool remote = false;       ///< the sphere set came from the remote source
     std::string remoteProblem; ///< why the remote source gave no set (the level was then built here)
+    /// The grid's disk cache outcome (Hit: the grid was read, not built). Its path is empty when no grid file was
+    /// looked up: another fast level, no disk cache, or the detector shared in memory.
+    CacheOutcome grid;
+    /** \brief Whether the grid was read from the disk cache. */
+    bool gridFromCache() const { return !grid.path.empty() && grid.source == CacheSource::Hit; }
   };
 
   /**
@@ -47,7 +53,8 @@ class SceneAssets {
                                                                           std::string& why)>;
 
   /**
-   * \brief Levels go through cache (null: no disk cache); detectors use fastLevel and gridRadius (the
+   * \brief Levels go through cache (null: no disk cache), and so do the grids of FastLevel::Grid detectors
+   * (CellGridCache, files beside the levels in the cache's directory); detectors use fastLevel and gridRadius (the
    * largest pointer radius the grid serves, see ClodDetector). keepBuilders keeps each mesh's ClodBuilder
    * after a build so another level of that mesh only clusters; false frees the placement's memory.
    * clustering is the strategy of the builds (null: single-link); a cache holds the levels of one
@@ -80,7 +87,8 @@ class SceneAssets {
 
   /**
    * \brief The level of mesh for clustering distance d: from memory, else the disk cache, else built
-   * (and stored). Lazy: nothing is built before it is asked for.
+   * (and stored); a Grid detector's grid likewise from the disk cache, else built and stored (info->grid).
+   * Lazy: nothing is built before it is asked for.
    * \throws InvalidParameter for a bad d; ClodError from the build.
    */
   std::shared_ptr<const ClodDetector> level(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
@@ -136,6 +144,7 @@ class SceneAssets {
   void dropUnusedLevels(const TriangleMesh* mesh, std::uint64_t keepDistanceBits);
 
   std::shared_ptr<SphereSetCache> cache_;
+  std::shared_ptr<CellGridCache> gridCache_;  // in cache_'s directory (null without cache_)
   std::shared_ptr<MeshCache> meshCache_;
   std::shared_ptr<const Clustering> clustering_;
   RemoteSource remote_;

@@ -1,0 +1,82 @@
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "clod_haptics/core/cell_grid.h"
+#include "clod_haptics/core/mesh.h"
+#include "clod_haptics/core/sphere_cache.h"
+#include "clod_haptics/core/sphere_set.h"
+
+namespace clod_haptics {
+
+/**
+ * \brief Version of the binary grid cache format; part of every grid file's name and header. Bump it whenever
+ * CellGrid's layout or its build (cell sizing, candidates, slabs) changes: a file answers as the build that wrote it.
+ */
+constexpr std::uint32_t kGridCacheFormatVersion = 1;
+
+/** \brief What a cached grid was built from: the level (mesh, d, its sphere set) and CellGrid's parameters. */
+struct GridCacheKey {
+  std::uint64_t meshHash = 0;       ///< meshContentHash of the mesh
+  double distance = 0.0;            ///< the level's clustering distance
+  std::uint64_t setHash = 0;        ///< sphereSetHash of the level's set (the cells' sphere counts come from it)
+  double radius = 0.0;              ///< the grid radius (CellGrid's radius)
+  double entriesPerTriangle = 24.0;  ///< CellGrid's memory budget
+  CellGrid::Index index = CellGrid::Index::Auto;
+};
+
+/**
+ * \brief A 64-bit hash of what a grid takes from a sphere set: its sphere count, offsets and triangle lists.
+ * Two sets of one mesh and distance built by different clustering strategies differ in it.
+ */
+std::uint64_t sphereSetHash(const ClodSphereSet& set);
+
+/**
+ * \brief Writes a grid in the binary cache format: magic, format version, byte order, the key, the mesh's
+ * triangle count, then the grid (CellGrid::writeTo) and a checksum of everything before it.
+ * \throws FormatError when the file cannot be written.
+ */
+void writeCellGridBinary(const CellGrid& grid, const GridCacheKey& key, std::size_t triangles,
+                         const std::string& path);
+
+/**
+ * \brief Reads a grid file and checks it against what the caller expects: checksum, magic, format version, byte
+ * order, every field of the key (bit for bit), the mesh's triangle count, then CellGrid::readFrom's checks. The
+ * file is read with its arrays copied in one piece each (no per-element parsing beyond the checks).
+ * \throws FormatError naming the first check that failed.
+ */
+CellGrid readCellGridBinary(const std::string& path, const GridCacheKey& key, const TriangleMesh& mesh);
+
+/**
+ * \brief A disk cache of grids (the Grid fast level), one file per (mesh content hash, clustering distance, grid
+ * radius, CellGrid options, format version), beside the sphere sets in the same directory. The file name
+ * "mesh-<hash>-d<bits>-grid-r<bits>-o<options>-v<version>.clodgrid" starts as the sphere set's. Same rules as
+ * SphereSetCache: a stale or corrupt file is deleted and rebuilt, files are stored atomically, thread-safe.
+ */
+class CellGridCache : public DiskCache {
+ public:
+  /** \brief A cache in directory (created on the first store); empty means defaultSphereCacheDirectory(). */
+  explicit CellGridCache(std::string directory = "");
+
+  /** \brief The file that holds the grid of key. */
+  std::string pathFor(const GridCacheKey& key) const;
+
+  /**
+   * \brief The grid of key from the cache, or from build() when there is no valid file, which is then stored.
+   * build is called at most once and only on a miss. A failure to store is reported in outcome->problem.
+   * \throws InvalidParameter for a bad distance or radius; whatever build() throws.
+   */
+  CellGrid getOrBuild(const TriangleMesh& mesh, const GridCacheKey& key, const std::function<CellGrid()>& build,
+                      CacheOutcome* outcome = nullptr);
+
+  /** \brief Grids built because no file existed. */
+  std::uint64_t misses() const { return misses_.load(); }
+
+ private:
+  std::atomic<std::uint64_t> misses_{0};
+};
+
+}  // namespace clod_haptics

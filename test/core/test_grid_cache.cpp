@@ -1,0 +1,445 @@
+// The disk cache of grids (the Grid fast level): a grid read back from its file makes a detector that answers
+// bit for bit as one with a freshly built grid and as the brute force; SceneAssets reads the grid of a restart
+// from the cache; truncated, flipped, stale and structurally corrupt files (with a valid checksum) are typed
+// errors, rebuilt by the cache, never a crash.
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/grid_cache.h"
+#include "clod_haptics/core/probes.h"
+#include "clod_haptics/core/scene_assets.h"
+#include "test_helpers.h"
+
+namespace {
+
+using namespace clod_haptics;
+namespace fs = std::filesystem;
+
+std::shared_ptr<const TriangleMesh> torus() {
+  static const auto mesh =
+      std::make_shared<const TriangleMesh>(loadMesh(std::string(CLOD_PACKAGE_DATA_DIR) + "/meshes/torus.obj"));
+  return mesh;
+}
+
+class TempDir {
+ public:
+  TempDir() {
+    std::random_device rd;
+    path_ = fs::temp_directory_path() / ("clod_grid_test_" + std::to_string(::getpid()) + "_" + std::to_string(rd()));
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  std::string str() const { return path_.string(); }
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  fs::path path_;
+};
+
+std::vector<char> readBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::vector<char>(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+void writeBytes(const std::string& path, const std::vector<char>& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+/** Recomputes the trailing checksum after a deliberate edit, so the edit reaches the later checks. */
+void fixChecksum(std::vector<char>& bytes) {
+  const std::uint64_t sum = fnv1a64(bytes.data(), bytes.size() - 8);
+  std::memcpy(bytes.data() + bytes.size() - 8, &sum, 8);
+}
+
+double ms(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
+}
+
+/** A level (mesh, its set at d) and a grid radius, with the key of its grid file. */
+struct Level {
+  std::shared_ptr<const TriangleMesh> mesh;
+  std::shared_ptr<const ClodSphereSet> set;
+  GridCacheKey key;
+};
+
+Level makeLevel(std::shared_ptr<const TriangleMesh> mesh, double distanceFraction, double radiusFraction) {
+  Level l;
+  l.mesh = std::move(mesh);
+  const double diagonal = l.mesh->bounds().diagonal().norm();
+  l.set = std::make_shared<const ClodSphereSet>(ClodBuilder(l.mesh).build(distanceFraction * diagonal));
+  l.key.meshHash = meshContentHash(*l.mesh);
+  l.key.distance = l.set->distance;
+  l.key.setHash = sphereSetHash(*l.set);
+  l.key.radius = radiusFraction * diagonal;
+  return l;
+}
+
+/**
+ * Two detectors answer bit for bit alike, and like the brute force, on near-surface probes at the grid radius
+ * and half of it (the grid's answers) and twice it (the hierarchy beyond the grid).
+ */
+void expectSameAnswers(const Level& l, const ClodDetector& built, const ClodDetector& cached) {
+  const double r = l.key.radius;
+  std::size_t contacts = 0;
+  for (double radius : {r, 0.5 * r, 2.0 * r}) {
+    const std::vector<Vec3> probes = nearSurfaceProbes(*l.mesh, 700, 1.5 * radius, 11);
+    for (const Vec3& p : probes) {
+      ContactResult a, b;
+      built.query(p, radius, DetectionMode::Exact, a);
+      cached.query(p, radius, DetectionMode::Exact, b);
+      const ContactResult want = bruteForceQuery(*l.mesh, p, radius);
+      ASSERT_EQ(b.contact, want.contact) << "r " << radius << " probe " << p.transpose();
+      ASSERT_EQ(a.contact, b.contact);
+      EXPECT_EQ(built.fastLevelHits(p, radius), cached.fastLevelHits(p, radius)) << "probe " << p.transpose();
+      if (!want.contact) continue;
+      ++contacts;
+      EXPECT_EQ(b.distance, want.distance) << "probe " << p.transpose();
+      EXPECT_EQ(a.distance, b.distance);
+      EXPECT_EQ(a.triangle, b.triangle);
+      EXPECT_EQ(a.sphere, b.sphere);
+      EXPECT_EQ(a.point, b.point);
+      EXPECT_EQ(a.normal, b.normal);
+      EXPECT_EQ(a.depth, b.depth);
+      EXPECT_EQ(a.inside, b.inside);
+      EXPECT_EQ(a.spheresHit, b.spheresHit);
+      EXPECT_EQ(a.trianglesTested, b.trianglesTested);
+    }
+  }
+  EXPECT_GT(contacts, 300u);
+}
+
+void roundTrip(const Level& l, const std::string& label) {
+  SCOPED_TRACE(label);
+  TempDir dir;
+  const std::string path = dir.file("grid.clodgrid");
+  for (CellGrid::Index index : {CellGrid::Index::Auto, CellGrid::Index::Dense, CellGrid::Index::Hashed}) {
+    GridCacheKey key = l.key;
+    key.index = index;
+    auto start = std::chrono::steady_clock::now();
+    const CellGrid grid(*l.mesh, *l.set, key.radius, key.entriesPerTriangle, index);
+    const double buildMs = ms(start);
+    writeCellGridBinary(grid, key, l.mesh->size(), path);
+    start = std::chrono::steady_clock::now();
+    const CellGrid read = readCellGridBinary(path, key, *l.mesh);
+    const double readMs = ms(start);
+    std::cout << "[ info     ] " << label << " " << l.mesh->size() << " triangles, index "
+              << (grid.dense() ? "dense" : "hashed") << ": grid build " << buildMs << " ms, read " << readMs
+              << " ms\n";
+    EXPECT_EQ(read.dense(), grid.dense());
+    EXPECT_EQ(read.cells(), grid.cells());
+    EXPECT_EQ(read.entries(), grid.entries());
+    const ClodDetector built(l.mesh, l.set, FastLevel::Grid, key.radius,
+                             [&](double) { return CellGrid(*l.mesh, *l.set, key.radius, key.entriesPerTriangle, index); });
+    int sourced = 0;
+    const ClodDetector cached(l.mesh, l.set, FastLevel::Grid, key.radius, [&](double radius) {
+      ++sourced;
+      EXPECT_EQ(radius, key.radius);
+      return readCellGridBinary(path, key, *l.mesh);
+    });
+    EXPECT_EQ(sourced, 1);
+    expectSameAnswers(l, built, cached);
+  }
+}
+
+TEST(GridCache, RoundTripAnswersAsTheBuiltGridAndTheBruteForce) {
+  roundTrip(makeLevel(torus(), 0.02, 0.01), "torus");
+  roundTrip(makeLevel(clod_test::loadNormalized(clod_test::sharedMesh("elephant.off")), 0.02, 0.01), "elephant");
+}
+
+TEST(GridCache, DetectorRefusesAGridOfAnotherRadius) {
+  const Level l = makeLevel(torus(), 0.02, 0.01);
+  EXPECT_THROW(ClodDetector(l.mesh, l.set, FastLevel::Grid, l.key.radius,
+                            [&](double radius) { return CellGrid(*l.mesh, *l.set, 2.0 * radius); }),
+               InvalidParameter);
+}
+
+// ---- SceneAssets: a restart reads the grid ----
+
+TEST(GridCache, SceneAssetsRestartReadsTheGridFromTheCache) {
+  TempDir dir;
+  const double d = 0.003, radius = 0.004;
+  SceneAssets::LevelInfo info;
+  std::shared_ptr<const ClodDetector> first;
+  {
+    SceneAssets assets(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Grid, radius);
+    first = assets.level(torus(), d, &info);
+    EXPECT_EQ(info.cache.source, CacheSource::Built);
+    EXPECT_EQ(info.grid.source, CacheSource::Built);
+    EXPECT_FALSE(info.gridFromCache());
+    ASSERT_FALSE(info.grid.path.empty());
+    EXPECT_TRUE(fs::exists(info.grid.path)) << info.grid.problem;
+    EXPECT_EQ(fs::path(info.grid.path).parent_path(), fs::path(dir.str())) << "beside the sphere sets";
+    // Shared in memory: no grid file looked up.
+    assets.level(torus(), d, &info);
+    EXPECT_TRUE(info.shared);
+    EXPECT_TRUE(info.grid.path.empty());
+    // Other fast levels have no grid.
+    assets.level(torus(), d, FastLevel::Hierarchy, &info);
+    EXPECT_TRUE(info.grid.path.empty());
+  }
+  // A restart: fresh assets over the same directory read both the set and the grid.
+  SceneAssets restarted(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Grid, radius);
+  const auto second = restarted.level(torus(), d, &info);
+  EXPECT_EQ(info.cache.source, CacheSource::Hit);
+  EXPECT_EQ(info.grid.source, CacheSource::Hit) << info.grid.problem;
+  EXPECT_TRUE(info.gridFromCache());
+  EXPECT_EQ(restarted.placements(), 0u) << "nothing built";
+  EXPECT_EQ(second->gridRadius(), radius);
+  Level l;
+  l.mesh = torus();
+  l.set = second->spheres();
+  l.key.radius = radius;
+  expectSameAnswers(l, *first, *second);
+
+  // Another radius is another file, built then read.
+  restarted.setGridRadius(0.006);
+  restarted.level(torus(), d, &info);
+  EXPECT_EQ(info.grid.source, CacheSource::Built);
+  SceneAssets third(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Grid, 0.006);
+  third.level(torus(), d, &info);
+  EXPECT_TRUE(info.gridFromCache());
+
+  // Without a disk cache, no grid file.
+  SceneAssets noCache(nullptr, FastLevel::Grid, radius);
+  noCache.level(torus(), d, &info);
+  EXPECT_TRUE(info.grid.path.empty());
+  EXPECT_FALSE(info.gridFromCache());
+}
+
+// ---- Corrupt and stale files ----
+
+class GridCacheFiles : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { level_ = new Level(makeLevel(torus(), 0.02, 0.01)); }
+  static void TearDownTestSuite() {
+    delete level_;
+    level_ = nullptr;
+  }
+
+  /** The grid of key through cache, counting builds. */
+  CellGrid get(CellGridCache& cache, const GridCacheKey& key, CacheOutcome& outcome) {
+    return cache.getOrBuild(*level_->mesh, key,
+                            [&] {
+                              ++builds_;
+                              return CellGrid(*level_->mesh, *level_->set, key.radius, key.entriesPerTriangle,
+                                              key.index);
+                            },
+                            &outcome);
+  }
+
+  /**
+   * Stores the grid of key, edits its file with mutate, and checks that a fresh cache rejects it with a problem
+   * containing why, rebuilds a grid that answers right, and stores a good file again.
+   */
+  void expectRejected(const std::function<void(std::vector<char>&)>& mutate, const std::string& why,
+                      CellGrid::Index index = CellGrid::Index::Auto) {
+    TempDir dir;
+    GridCacheKey key = level_->key;
+    key.index = index;
+    CacheOutcome outcome;
+    {
+      CellGridCache cache(dir.str());
+      get(cache, key, outcome);
+      ASSERT_EQ(outcome.source, CacheSource::Built);
+      ASSERT_TRUE(outcome.problem.empty()) << outcome.problem;
+    }
+    std::vector<char> bytes = readBytes(outcome.path);
+    mutate(bytes);
+    writeBytes(outcome.path, bytes);
+    // The reader alone: a typed error naming why.
+    try {
+      readCellGridBinary(outcome.path, key, *level_->mesh);
+      ADD_FAILURE() << "the edited file was accepted (expected: " << why << ")";
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+    // The cache: rejected, rebuilt, stored again.
+    CellGridCache restarted(dir.str());
+    const int before = builds_;
+    CellGrid grid = get(restarted, key, outcome);
+    EXPECT_EQ(outcome.source, CacheSource::Rebuilt);
+    EXPECT_NE(outcome.problem.find(why), std::string::npos) << outcome.problem;
+    EXPECT_EQ(builds_, before + 1);
+    EXPECT_EQ(restarted.rejected(), 1u);
+    ClodDetector detector(level_->mesh, level_->set, FastLevel::Grid, key.radius,
+                          [&](double) { return std::move(grid); });
+    const ClodDetector fresh(level_->mesh, level_->set, FastLevel::Grid, key.radius);
+    expectSameAnswers(*level_, fresh, detector);
+    CellGridCache third(dir.str());
+    get(third, key, outcome);
+    EXPECT_EQ(outcome.source, CacheSource::Hit) << outcome.problem;
+  }
+
+  // Offsets in a grid file: magic 8, version 4, byte order 4, mesh hash 8, distance 8, set hash 8, radius 8,
+  // entries per triangle 8, index 1, triangles 8; then the grid's 10 doubles, 3 dimensions, the cell count, the
+  // 5 array sizes, and the arrays.
+  static constexpr std::size_t kMeshHash = 16, kRadius = 40, kTriangles = 57, kGrid = 65;
+  static constexpr std::size_t kCellSize = kGrid + 8, kCells = kGrid + 104, kSizes = kGrid + 112, kArrays = kGrid + 152;
+  static std::uint64_t u64(const std::vector<char>& b, std::size_t at) {
+    std::uint64_t v;
+    std::memcpy(&v, b.data() + at, 8);
+    return v;
+  }
+  template <class T>
+  static void set(std::vector<char>& b, std::size_t at, T v) {
+    std::memcpy(b.data() + at, &v, sizeof v);
+  }
+  /** Offset of array k (0 entries, 1 words, 2 refs, 3 headers, 4 slots). */
+  static std::size_t arrayAt(const std::vector<char>& b, int k) {
+    const std::size_t sizes[5] = {8, 16, 8, 4, 24};
+    std::size_t at = kArrays;
+    for (int i = 0; i < k; ++i) at += u64(b, kSizes + 8 * i) * sizes[i];
+    return at;
+  }
+
+  static Level* level_;
+  int builds_ = 0;
+};
+Level* GridCacheFiles::level_ = nullptr;
+
+TEST_F(GridCacheFiles, TruncatedFileIsRebuilt) {
+  expectRejected([](std::vector<char>& b) { b.resize(b.size() - 100); }, "checksum");
+  expectRejected([](std::vector<char>& b) { b.resize(b.size() / 2); }, "checksum");
+  expectRejected([](std::vector<char>& b) { b.resize(5); }, "too short");
+  expectRejected([](std::vector<char>& b) { b.clear(); }, "too short");
+}
+
+TEST_F(GridCacheFiles, FlippedByteIsRebuilt) {
+  expectRejected([](std::vector<char>& b) { b[b.size() / 2] ^= 0x10; }, "checksum");
+  expectRejected([](std::vector<char>& b) { b[kGrid + 3] ^= 0x01; }, "checksum");
+}
+
+TEST_F(GridCacheFiles, StaleFilesAreRebuilt) {
+  expectRejected(
+      [](std::vector<char>& b) {
+        set<std::uint32_t>(b, 8, kGridCacheFormatVersion + 1);
+        fixChecksum(b);
+      },
+      "format version");
+  expectRejected(
+      [](std::vector<char>& b) {
+        b[kMeshHash] ^= 1;
+        fixChecksum(b);
+      },
+      "another mesh");
+  expectRejected(
+      [](std::vector<char>& b) {
+        set<double>(b, kRadius, 0.5);
+        fixChecksum(b);
+      },
+      "grid radius");
+  expectRejected(
+      [](std::vector<char>& b) {
+        b[0] = 'X';
+        fixChecksum(b);
+      },
+      "not a clod_haptics grid cache file");
+}
+
+TEST_F(GridCacheFiles, FileOfAnotherMeshOrSetIsRefused) {
+  TempDir dir;
+  const std::string path = dir.file("g.clodgrid");
+  const CellGrid grid(*level_->mesh, *level_->set, level_->key.radius);
+  writeCellGridBinary(grid, level_->key, level_->mesh->size(), path);
+  GridCacheKey other = level_->key;
+  other.setHash ^= 1;
+  EXPECT_THROW(readCellGridBinary(path, other, *level_->mesh), FormatError);
+  other = level_->key;
+  other.entriesPerTriangle = 12.0;
+  EXPECT_THROW(readCellGridBinary(path, other, *level_->mesh), FormatError);
+  const auto head = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
+  EXPECT_THROW(readCellGridBinary(path, level_->key, *head), FormatError) << "another mesh's triangle count";
+  EXPECT_THROW(readCellGridBinary(dir.file("missing.clodgrid"), level_->key, *level_->mesh), FormatError);
+}
+
+// Edits behind a valid checksum: the range checks alone stand between the file and an out-of-bounds read.
+TEST_F(GridCacheFiles, StructuralCorruptionIsATypedError) {
+  const auto triangles = static_cast<std::uint32_t>(level_->mesh->size());
+  auto edit = [](std::function<void(std::vector<char>&)> change) {
+    return [change](std::vector<char>& b) {
+      change(b);
+      fixChecksum(b);
+    };
+  };
+  expectRejected(edit([](std::vector<char>& b) { set<double>(b, kCellSize, std::nan("")); }), "not finite");
+  expectRejected(edit([](std::vector<char>& b) { set<std::int64_t>(b, kGrid + 80, 0); }), "dimensions");
+  expectRejected(edit([](std::vector<char>& b) { set<std::uint64_t>(b, kSizes, u64(b, kSizes) + 1); }),
+                 "array sizes");
+  expectRejected(edit([](std::vector<char>& b) { set<std::uint64_t>(b, kCells, u64(b, kCells) + 1); }),
+                 "cell count");
+  // A candidate's triangle past the mesh; a header whose count runs past the entries.
+  expectRejected(edit([&](std::vector<char>& b) { set<std::uint32_t>(b, arrayAt(b, 0) + 8, triangles); }),
+                 "out of range");
+  expectRejected(edit([](std::vector<char>& b) { set<std::uint32_t>(b, arrayAt(b, 0), 0xfffffff0u); }),
+                 "header out of range");
+  // The dense index: a rank, a header position.
+  expectRejected(edit([](std::vector<char>& b) { set<std::uint32_t>(b, arrayAt(b, 1) + 16 * 3 + 8, 7u); }), "ranks",
+                 CellGrid::Index::Dense);
+  expectRejected(edit([](std::vector<char>& b) { set<std::uint32_t>(b, arrayAt(b, 3) + 4, 1u); }), "index header",
+                 CellGrid::Index::Dense);
+  // The hash table: a header pointing at a candidate, a key moved off its probe chain, a full table.
+  auto firstOccupied = [](const std::vector<char>& b) {
+    std::size_t at = arrayAt(b, 4);
+    while (u64(b, at) == CellGrid::kOutside) at += 24;
+    return at;
+  };
+  expectRejected(edit([&](std::vector<char>& b) { set<std::uint64_t>(b, firstOccupied(b) + 8, 1u); }),
+                 "not a cell's", CellGrid::Index::Hashed);
+  expectRejected(edit([&](std::vector<char>& b) {
+                   // Swap the first occupied slot with the free slot just before its chain start cannot be
+                   // described portably; flipping a key's low bit sends it to another chain.
+                   const std::size_t at = firstOccupied(b);
+                   set<std::uint64_t>(b, at, u64(b, at) ^ 1u);
+                 }),
+                 "hash table", CellGrid::Index::Hashed);
+  expectRejected(edit([](std::vector<char>& b) {
+                   const std::size_t slots = u64(b, kSizes + 32), at = arrayAt(b, 4);
+                   for (std::size_t s = 0; s < slots; ++s)
+                     if (u64(b, at + 24 * s) == CellGrid::kOutside) set<std::uint64_t>(b, at + 24 * s, 5u);
+                 }),
+                 "hash table", CellGrid::Index::Hashed);
+}
+
+// Not a timed test: prints build and read times on the shared meshes (run with --gtest_also_run_disabled_tests).
+TEST(GridCache, DISABLED_Timing) {
+  for (const char* name : {"refined_elephant.off", "mannequin-devil.off"}) {
+    const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
+    const double d = 0.003, radius = 0.005;
+    TempDir dir;
+    double cold = 0.0, warm = 0.0, coldGrid = 0.0, warmGrid = 0.0;
+    for (int pass = 0; pass < 2; ++pass) {
+      SceneAssets assets(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Grid, radius);
+      SceneAssets::LevelInfo info;
+      const auto start = std::chrono::steady_clock::now();
+      assets.level(mesh, d, &info);
+      (pass == 0 ? cold : warm) = ms(start);
+      (pass == 0 ? coldGrid : warmGrid) = info.grid.ms;
+      EXPECT_EQ(info.gridFromCache(), pass == 1);
+    }
+    std::cout << "[ timing   ] " << name << " (" << mesh->size() << " triangles): grid build " << coldGrid
+              << " ms, read " << warmGrid << " ms (" << coldGrid / warmGrid << "x); level() cold " << cold
+              << " ms, warm " << warm << " ms (" << cold / warm << "x)\n";
+  }
+}
+
+}  // namespace
