@@ -434,7 +434,20 @@ TEST(GridCache, DISABLED_Timing) {
       assets.level(mesh, d, &info);
       (pass == 0 ? cold : warm) = ms(start);
       (pass == 0 ? coldGrid : warmGrid) = info.grid.ms;
+      std::cout << "[ timing   ] " << name << (pass == 0 ? " cold" : " warm") << ": sphere set " << info.cache.ms
+                << " ms, detector " << info.detectorMs << " ms (grid " << info.grid.ms << " ms)\n";
       EXPECT_EQ(info.gridFromCache(), pass == 1);
+    }
+    {  // What the warm detector spends beside the grid: the hierarchy's trees (the fallback beyond the grid radius).
+      SceneAssets assets(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Grid, radius);
+      const auto set = assets.spheres(mesh, d);
+      auto start = std::chrono::steady_clock::now();
+      const std::uint64_t h = sphereSetHash(*set);
+      const double hashMs = ms(start);
+      start = std::chrono::steady_clock::now();
+      const ClodDetector hierarchy(mesh, set, FastLevel::Hierarchy);
+      std::cout << "[ timing   ] " << name << ": hierarchy detector " << ms(start) << " ms, set hash " << hashMs
+                << " ms (" << (h != 0) << ")\n";
     }
     std::cout << "[ timing   ] " << name << " (" << mesh->size() << " triangles): grid build " << coldGrid
               << " ms, read " << warmGrid << " ms (" << coldGrid / warmGrid << "x); level() cold " << cold
