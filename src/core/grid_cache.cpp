@@ -4,8 +4,8 @@
 #include <cmath>
 #include <cstring>
 
-#include "clod_haptics/core/errors.h"
 #include "binary_io.h"
+#include "clod_haptics/core/errors.h"
 
 namespace clod_haptics {
 
@@ -51,6 +51,119 @@ void readHeader(ByteReader& r, const GridCacheKey& key, const TriangleMesh& mesh
 
 }  // namespace
 
+void CellGrid::writeTo(detail::ByteWriter& out) const {
+  static_assert(sizeof(Entry) == 8 && sizeof(Word) == 16 && sizeof(CellRef) == 8 && sizeof(Slot) == 24,
+                "the grid's arrays are written as they lie in memory: no padding bytes");
+  for (double v : {radius_, cell_, inv_, slack_, unit_, distanceUnit_, slabPad_, origin_.x(), origin_.y(), origin_.z()})
+    out.put(v);
+  for (std::int64_t d : dims_) out.put(d);
+  out.put(static_cast<std::uint64_t>(cellCount_));
+  for (std::size_t n : {entries_.size(), words_.size(), refs_.size(), headers_.size(), slots_.size()})
+    out.put(static_cast<std::uint64_t>(n));
+  out.putArray(entries_);
+  out.putArray(words_);
+  out.putArray(refs_);
+  out.putArray(headers_);
+  out.putArray(slots_);
+}
+
+CellGrid CellGrid::readFrom(detail::ByteReader& in, std::size_t triangles) {
+  CellGrid g;
+  double* const scalars[] = {&g.radius_, &g.cell_, &g.inv_, &g.slack_, &g.unit_, &g.distanceUnit_, &g.slabPad_};
+  for (double* v : scalars) *v = in.get<double>("the grid's scalars");
+  for (int k = 0; k < 3; ++k) g.origin_[k] = in.get<double>("the grid's origin");
+  for (std::int64_t& d : g.dims_) d = in.get<std::int64_t>("the grid's dimensions");
+  const auto cells = in.get<std::uint64_t>("the cell count");
+  std::uint64_t counts[5];
+  for (std::uint64_t& c : counts) c = in.get<std::uint64_t>("the array sizes");
+
+  for (double* v : scalars)
+    if (!std::isfinite(*v)) in.fail("a grid scalar is not finite");
+  if (!g.origin_.allFinite()) in.fail("the grid's origin is not finite");
+  if (!(g.radius_ > 0.0 && g.cell_ > 0.0 && g.inv_ > 0.0 && g.unit_ > 0.0 && g.distanceUnit_ > 0.0 && g.slack_ >= 0.0 &&
+        g.slabPad_ >= 0.0))
+    in.fail("grid scalars out of range");
+  for (std::int64_t d : g.dims_)
+    if (d < 1 || d > (1 << kBits) - 1) in.fail("grid dimensions out of range");
+  in.expectArrays({{counts[0], sizeof(Entry)},
+                   {counts[1], sizeof(Word)},
+                   {counts[2], sizeof(CellRef)},
+                   {counts[3], sizeof(std::uint32_t)},
+                   {counts[4], sizeof(Slot)}});
+  in.readArray(g.entries_, counts[0], "the entries");
+  in.readArray(g.words_, counts[1], "the dense index");
+  in.readArray(g.refs_, counts[2], "the cell proofs");
+  in.readArray(g.headers_, counts[3], "the cell headers");
+  in.readArray(g.slots_, counts[4], "the hash table");
+  g.cellCount_ = cells;
+
+  // The cells: consecutive runs of a header and its candidates filling the entries exactly.
+  const std::size_t n = g.entries_.size();
+  const bool dense = !g.words_.empty();
+  if (n == 0 || cells == 0) in.fail("empty grid");
+  if (dense ? (g.refs_.size() != cells || g.headers_.size() != cells || !g.slots_.empty())
+            : (!g.refs_.empty() || !g.headers_.empty() || g.slots_.empty()))
+    in.fail("index sizes do not match the cell count");
+  std::vector<std::uint64_t> isHeader(dense ? 0 : (n + 63) / 64, 0);  // hashed: which entries start a cell
+  std::uint64_t cell = 0;
+  for (std::size_t at = 0; at < n; ++cell) {
+    const std::uint32_t count = g.entries_[at].triangle;
+    std::uint32_t spheres;
+    std::memcpy(&spheres, reinterpret_cast<const unsigned char*>(&g.entries_[at]) + 4, sizeof spheres);
+    if (cell >= cells) in.fail("more cells in the entries than the cell count");
+    if (count == 0 || count > n - at - 1 || spheres == 0 || spheres > count)
+      in.fail("cell " + std::to_string(cell) + ": header out of range");
+    if (dense) {
+      if (g.headers_[cell] != at) in.fail("cell " + std::to_string(cell) + ": index header does not match the entries");
+    } else {
+      isHeader[at >> 6] |= 1ull << (at & 63);
+    }
+    for (std::size_t i = at + 1; i <= at + count; ++i)
+      if (g.entries_[i].triangle >= triangles)
+        in.fail("cell " + std::to_string(cell) + ": triangle " + std::to_string(g.entries_[i].triangle) +
+                " out of range (" + std::to_string(triangles) + " triangles)");
+    at += 1 + static_cast<std::size_t>(count);
+  }
+  if (cell != cells) in.fail("fewer cells in the entries than the cell count");
+
+  if (dense) {
+    // One bit per cell of the box; the ranks count the bits before each word, the bits total the cells.
+    const double total =
+        static_cast<double>(g.dims_[0]) * static_cast<double>(g.dims_[1]) * static_cast<double>(g.dims_[2]);
+    if (!(total < 17179869184.0) || g.words_.size() != (static_cast<std::uint64_t>(total) + 63) / 64)
+      in.fail("dense index size does not match the grid's dimensions");
+    std::uint64_t rank = 0;
+    for (const Word& w : g.words_) {
+      if (w.rank != rank) in.fail("dense index ranks inconsistent");
+      rank += static_cast<std::uint64_t>(__builtin_popcountll(w.bits));
+    }
+    const std::uint64_t tail = static_cast<std::uint64_t>(total) & 63;
+    if (tail != 0 && (g.words_.back().bits >> tail) != 0) in.fail("dense index bits beyond the grid");
+    if (rank != cells) in.fail("dense index bits do not match the cell count");
+  } else {
+    // Open addressing: a power-of-two table with a free slot, every key reachable from its hash, every header a cell's.
+    const std::size_t size = g.slots_.size();
+    if (size < 16 || (size & (size - 1)) != 0) in.fail("hash table size is not a power of two");
+    g.mask_ = size - 1;
+    std::uint64_t occupied = 0;
+    for (const Slot& slot : g.slots_) occupied += slot.key != kOutside;
+    if (occupied != cells || occupied >= size) in.fail("hash table does not match the cell count");
+    // With a free slot every probe ends; each key must be the first of its value on its chain from its hash.
+    for (const Slot& slot : g.slots_) {
+      if (slot.key == kOutside) continue;
+      constexpr std::uint64_t m = (1ull << kBits) - 1;
+      if ((slot.key >> (3 * kBits)) != 0 || static_cast<std::int64_t>(slot.key & m) >= g.dims_[0] ||
+          static_cast<std::int64_t>((slot.key >> kBits) & m) >= g.dims_[1] ||
+          static_cast<std::int64_t>((slot.key >> (2 * kBits)) & m) >= g.dims_[2])
+        in.fail("hash table key outside the grid");
+      if (slot.header >= n || !((isHeader[slot.header >> 6] >> (slot.header & 63)) & 1))
+        in.fail("hash table header is not a cell's");
+      if (g.findHashed(slot.key) != &slot.ref) in.fail("hash table key not reachable from its hash");
+    }
+  }
+  return g;
+}
+
 std::uint64_t sphereSetHash(const ClodSphereSet& set) {
   const std::uint64_t counts[2] = {set.size(), set.triangles.size()};
   std::uint64_t h = fnv1a64(counts, sizeof(counts));
@@ -88,8 +201,8 @@ CellGrid readCellGridBinary(const std::string& path, const GridCacheKey& key, co
 CellGridCache::CellGridCache(std::string directory) : DiskCache(std::move(directory)) {}
 
 std::string CellGridCache::pathFor(const GridCacheKey& key) const {
-  return directory() + "/mesh-" + detail::hex64(key.meshHash) + "-d" + detail::hex64(bitsOf(key.distance)) +
-         "-grid-r" + detail::hex64(bitsOf(key.radius)) + "-o" + detail::hex64(optionsHash(key)) + "-v" +
+  return directory() + "/mesh-" + detail::hex64(key.meshHash) + "-d" + detail::hex64(bitsOf(key.distance)) + "-grid-r" +
+         detail::hex64(bitsOf(key.radius)) + "-o" + detail::hex64(optionsHash(key)) + "-v" +
          std::to_string(kGridCacheFormatVersion) + ".clodgrid";
 }
 

@@ -4,6 +4,7 @@
 // errors, rebuilt by the cache, never a crash.
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstring>
@@ -15,8 +16,6 @@
 #include <random>
 #include <string>
 #include <vector>
-
-#include <unistd.h>
 
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/detector.h"
@@ -143,13 +142,13 @@ void roundTrip(const Level& l, const std::string& label) {
     const CellGrid read = readCellGridBinary(path, key, *l.mesh);
     const double readMs = ms(start);
     std::cout << "[ info     ] " << label << " " << l.mesh->size() << " triangles, index "
-              << (grid.dense() ? "dense" : "hashed") << ": grid build " << buildMs << " ms, read " << readMs
-              << " ms\n";
+              << (grid.dense() ? "dense" : "hashed") << ": grid build " << buildMs << " ms, read " << readMs << " ms\n";
     EXPECT_EQ(read.dense(), grid.dense());
     EXPECT_EQ(read.cells(), grid.cells());
     EXPECT_EQ(read.entries(), grid.entries());
-    const ClodDetector built(l.mesh, l.set, FastLevel::Grid, key.radius,
-                             [&](double) { return CellGrid(*l.mesh, *l.set, key.radius, key.entriesPerTriangle, index); });
+    const ClodDetector built(l.mesh, l.set, FastLevel::Grid, key.radius, [&](double) {
+      return CellGrid(*l.mesh, *l.set, key.radius, key.entriesPerTriangle, index);
+    });
     int sourced = 0;
     const ClodDetector cached(l.mesh, l.set, FastLevel::Grid, key.radius, [&](double radius) {
       ++sourced;
@@ -238,13 +237,13 @@ class GridCacheFiles : public ::testing::Test {
 
   /** The grid of key through cache, counting builds. */
   CellGrid get(CellGridCache& cache, const GridCacheKey& key, CacheOutcome& outcome) {
-    return cache.getOrBuild(*level_->mesh, key,
-                            [&] {
-                              ++builds_;
-                              return CellGrid(*level_->mesh, *level_->set, key.radius, key.entriesPerTriangle,
-                                              key.index);
-                            },
-                            &outcome);
+    return cache.getOrBuild(
+        *level_->mesh, key,
+        [&] {
+          ++builds_;
+          return CellGrid(*level_->mesh, *level_->set, key.radius, key.entriesPerTriangle, key.index);
+        },
+        &outcome);
   }
 
   /**
@@ -383,10 +382,8 @@ TEST_F(GridCacheFiles, StructuralCorruptionIsATypedError) {
   };
   expectRejected(edit([](std::vector<char>& b) { set<double>(b, kCellSize, std::nan("")); }), "not finite");
   expectRejected(edit([](std::vector<char>& b) { set<std::int64_t>(b, kGrid + 80, 0); }), "dimensions");
-  expectRejected(edit([](std::vector<char>& b) { set<std::uint64_t>(b, kSizes, u64(b, kSizes) + 1); }),
-                 "array sizes");
-  expectRejected(edit([](std::vector<char>& b) { set<std::uint64_t>(b, kCells, u64(b, kCells) + 1); }),
-                 "cell count");
+  expectRejected(edit([](std::vector<char>& b) { set<std::uint64_t>(b, kSizes, u64(b, kSizes) + 1); }), "array sizes");
+  expectRejected(edit([](std::vector<char>& b) { set<std::uint64_t>(b, kCells, u64(b, kCells) + 1); }), "cell count");
   // A candidate's triangle past the mesh; a header whose count runs past the entries.
   expectRejected(edit([&](std::vector<char>& b) { set<std::uint32_t>(b, arrayAt(b, 0) + 8, triangles); }),
                  "out of range");
@@ -403,8 +400,8 @@ TEST_F(GridCacheFiles, StructuralCorruptionIsATypedError) {
     while (u64(b, at) == CellGrid::kOutside) at += 24;
     return at;
   };
-  expectRejected(edit([&](std::vector<char>& b) { set<std::uint64_t>(b, firstOccupied(b) + 8, 1u); }),
-                 "not a cell's", CellGrid::Index::Hashed);
+  expectRejected(edit([&](std::vector<char>& b) { set<std::uint64_t>(b, firstOccupied(b) + 8, 1u); }), "not a cell's",
+                 CellGrid::Index::Hashed);
   expectRejected(edit([&](std::vector<char>& b) {
                    // Swap the first occupied slot with the free slot just before its chain start cannot be
                    // described portably; flipping a key's low bit sends it to another chain.

@@ -20,10 +20,10 @@ constexpr std::uint32_t kGridCacheFormatVersion = 1;
 
 /** \brief What a cached grid was built from: the level (mesh, d, its sphere set) and CellGrid's parameters. */
 struct GridCacheKey {
-  std::uint64_t meshHash = 0;       ///< meshContentHash of the mesh
-  double distance = 0.0;            ///< the level's clustering distance
-  std::uint64_t setHash = 0;        ///< sphereSetHash of the level's set (the cells' sphere counts come from it)
-  double radius = 0.0;              ///< the grid radius (CellGrid's radius)
+  std::uint64_t meshHash = 0;        ///< meshContentHash of the mesh
+  double distance = 0.0;             ///< the level's clustering distance
+  std::uint64_t setHash = 0;         ///< sphereSetHash of the level's set (the cells' sphere counts come from it)
+  double radius = 0.0;               ///< the grid radius (CellGrid's radius)
   double entriesPerTriangle = 24.0;  ///< CellGrid's memory budget
   CellGrid::Index index = CellGrid::Index::Auto;
 };
@@ -39,8 +39,7 @@ std::uint64_t sphereSetHash(const ClodSphereSet& set);
  * triangle count, then the grid (CellGrid::writeTo) and a checksum of everything before it.
  * \throws FormatError when the file cannot be written.
  */
-void writeCellGridBinary(const CellGrid& grid, const GridCacheKey& key, std::size_t triangles,
-                         const std::string& path);
+void writeCellGridBinary(const CellGrid& grid, const GridCacheKey& key, std::size_t triangles, const std::string& path);
 
 /**
  * \brief Reads a grid file and checks it against what the caller expects: checksum, magic, format version, byte
