@@ -178,8 +178,10 @@ bool HapticDetector::prepareNextLevel(std::vector<LevelPlan>& plan) {
     auto level = assets_->level(mesh, p.distance, fast, &info);
     p.step = quick ? kQuick : kFinal;
     publishLevel(i, std::move(level), p.source, p.setMs + info.detectorMs);
-    ROS_INFO("detector: '%s' level d = %g in use (%s detector, %.1f ms)%s", name.c_str(), p.distance, toString(fast),
-             info.detectorMs, wanted_[i].load() ? ", asked for by the pointer" : "");
+    if (!info.grid.problem.empty()) ROS_WARN("detector: '%s': %s", name.c_str(), info.grid.problem.c_str());
+    ROS_INFO("detector: '%s' level d = %g in use (%s detector, %.1f ms%s)%s", name.c_str(), p.distance,
+             toString(fast), info.detectorMs, info.gridFromCache() ? ", grid from cache" : "",
+             wanted_[i].load() ? ", asked for by the pointer" : "");
   } catch (const std::exception& e) {
     ROS_ERROR("detector: '%s': cannot prepare level d = %g: %s; keeping its current level (or brute force)",
               name.c_str(), p.distance, e.what());

@@ -25,7 +25,8 @@ namespace clod_haptics {
  * used by several objects (same file, same load options) is loaded once; a level (same mesh content, same
  * clustering distance) comes from memory (another object or an earlier request still holds it), else the
  * disk cache, else the remote source (setRemote: the ROS layer's sphere_builder service), else a build,
- * and is shared. Builders (the ray casts) are made only when a level must be built. Levels nobody holds
+ * and is shared. A Grid detector's grid likewise comes from the disk cache (CellGridCache, beside the levels)
+ * or is built and stored. Builders (the ray casts) are made only when a level must be built. Levels nobody holds
  * any more are dropped from memory when another distance of the same mesh is asked for, so changing the
  * distance again and again does not accumulate levels. Thread-safe (one mutex; loads and builds run under it).
  */

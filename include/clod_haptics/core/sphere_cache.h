@@ -69,7 +69,7 @@ struct CacheOutcome {
 };
 
 /**
- * \brief What the disk caches (SphereSetCache, MeshCache) share: a directory of files named by key, a file
+ * \brief What the disk caches (SphereSetCache, CellGridCache, MeshCache) share: a directory of files named by key, a file
  * that fails its checks deleted and its content built again, files stored atomically, and counters.
  */
 class DiskCache {
@@ -101,7 +101,7 @@ class DiskCache {
 
 /**
  * \brief A disk cache of CLOD levels, one file per (mesh content hash, clustering distance, format
- * version). A restart finds the files and does not rebuild; a stale or corrupt file is detected,
+ * version); the grids of the Grid fast level go in the same directory (CellGridCache, grid_cache.h). A restart finds the files and does not rebuild; a stale or corrupt file is detected,
  * deleted and rebuilt, never trusted. Files are written to a temporary name and renamed, so a crash
  * or a concurrent writer never leaves a half-written file under the final name.
  *
