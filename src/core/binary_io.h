@@ -14,6 +14,16 @@
 namespace clod_haptics {
 namespace detail {
 
+/** \brief The byte-order mark every binary cache file stores after its version (read back as written). */
+constexpr std::uint32_t kByteOrder = 0x01020304u;
+
+/** \brief The bits of a double, for exact comparisons and file names (-0 and +0 differ). */
+inline std::uint64_t bitsOf(double d) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &d, sizeof(bits));
+  return bits;
+}
+
 /** \brief The 8-byte magic that opens a cache file. */
 using CacheMagic = char[8];
 

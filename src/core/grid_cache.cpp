@@ -16,13 +16,8 @@ using detail::ByteWriter;
 
 constexpr detail::CacheMagic kMagic = {'C', 'L', 'O', 'D', 'G', 'R', 'I', 'D'};
 constexpr const char* kKind = "grid cache";
-constexpr std::uint32_t kByteOrder = 0x01020304u;
-
-std::uint64_t bitsOf(double d) {
-  std::uint64_t bits;
-  std::memcpy(&bits, &d, sizeof(bits));
-  return bits;
-}
+using detail::bitsOf;
+using detail::kByteOrder;
 
 /** The CellGrid options of a key, for the file name. */
 std::uint64_t optionsHash(const GridCacheKey& key) {

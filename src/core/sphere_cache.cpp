@@ -20,14 +20,9 @@ using detail::ByteWriter;
 
 constexpr detail::CacheMagic kMagic = {'C', 'L', 'O', 'D', 'S', 'P', 'H', '\0'};
 constexpr const char* kKind = "sphere cache";
-constexpr std::uint32_t kByteOrder = 0x01020304u;
 constexpr std::uint64_t kFnvPrime = 0x100000001b3ull;
-
-std::uint64_t bitsOf(double d) {
-  std::uint64_t bits;
-  std::memcpy(&bits, &d, sizeof(bits));
-  return bits;
-}
+using detail::bitsOf;
+using detail::kByteOrder;
 
 void writeStats(ByteWriter& w, const BuildStats& s) {
   for (std::size_t v : {s.centres, s.spheres, s.unpaired, s.degenerate, s.maxTrianglesPerSphere})

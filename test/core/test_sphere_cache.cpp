@@ -20,6 +20,7 @@
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/scene_assets.h"
 #include "clod_haptics/core/sphere_cache.h"
+#include "cache_file_helpers.h"
 #include "test_helpers.h"
 
 namespace {
@@ -29,39 +30,10 @@ namespace fs = std::filesystem;
 
 std::string torusPath() { return std::string(CLOD_PACKAGE_DATA_DIR) + "/meshes/torus.obj"; }
 
-/** A fresh directory under the temp directory, removed at the end of the test. */
-class TempDir {
- public:
-  TempDir() {
-    std::random_device rd;
-    path_ = fs::temp_directory_path() / ("clod_cache_test_" + std::to_string(::getpid()) + "_" + std::to_string(rd()));
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string str() const { return path_.string(); }
-
- private:
-  fs::path path_;
-};
-
-std::vector<char> readBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::vector<char>(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-void writeBytes(const std::string& path, const std::vector<char>& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
-
-/** Recomputes the trailing checksum after a deliberate edit, so the edit reaches the later checks. */
-void fixChecksum(std::vector<char>& bytes) {
-  const std::uint64_t sum = fnv1a64(bytes.data(), bytes.size() - 8);
-  std::memcpy(bytes.data() + bytes.size() - 8, &sum, 8);
-}
+using clod_test::TempDir;
+using clod_test::readBytes;
+using clod_test::writeBytes;
+using clod_test::fixChecksum;
 
 void expectSameSet(const ClodSphereSet& a, const ClodSphereSet& b) {
   ASSERT_EQ(a.size(), b.size());
