@@ -164,6 +164,25 @@ Errors compare(const std::vector<ContactResult>& ours, const std::vector<Contact
   return e;
 }
 
+struct Stats {
+  double mean = NAN, median = NAN, p90 = NAN, p99 = NAN, max = NAN;
+};
+
+Stats statsOf(std::vector<float> v) {
+  Stats st;
+  if (v.empty()) return st;
+  std::sort(v.begin(), v.end());
+  auto at = [&](double q) { return static_cast<double>(v[std::min(v.size() - 1, static_cast<std::size_t>(q * v.size()))]); };
+  double sum = 0.0;
+  for (float x : v) sum += x;
+  st.mean = sum / v.size();
+  st.median = at(0.5);
+  st.p90 = at(0.9);
+  st.p99 = at(0.99);
+  st.max = v.back();
+  return st;
+}
+
 // A peer agrees when the contact flag matches and, in contact, distance and point match to 1e-9.
 std::size_t disagreements(const std::vector<Answer>& answers, const std::vector<ContactResult>& ref, std::size_t n,
                           double& maxDistanceDiff) {
@@ -260,6 +279,25 @@ struct ProbeSet {
   std::vector<ContactResult> ref;     // stateless: what every contender without a cache answers
   std::vector<ContactResult> stream;  // the same points as one stream with a QueryCache (streamReference)
 };
+
+// A contender's times on a set split by the stream's deep points: where the stream reference follows the push
+// deeper than r (a contact the stateless reference does not have). There the cached contender searches deeper and
+// answers contact while the stateless ones answer free; the shallow points are the same question for everyone.
+struct DeepSplit {
+  std::size_t deep = 0;
+  Stats shallow, deepStats;
+};
+
+DeepSplit splitDeep(const std::vector<float>& ns, const ProbeSet& set) {
+  DeepSplit out;
+  std::vector<float> shallow, deep;
+  for (std::size_t i = 0; i < ns.size(); ++i)
+    (set.stream[i].contact != set.ref[i].contact ? deep : shallow).push_back(ns[i]);
+  out.deep = deep.size();
+  out.shallow = statsOf(std::move(shallow));
+  out.deepStats = statsOf(std::move(deep));
+  return out;
+}
 
 const char* levelName(FastLevel l) { return toString(l); }
 
@@ -419,11 +457,11 @@ void benchMesh(Run& run, const std::string& path) {
   // Probe sets, in this order: near-surface, uniform, the stylus trajectory; plus the
   // near-surface set sorted along a Morton curve (a coherent stream).
   std::vector<ProbeSet> sets;
-  sets.push_back({"near", nearSurfaceProbes(mesh, s.probes, 3 * s.r, 1), {}});
-  sets.push_back({"uniform", uniformProbes(mesh, s.probes, s.r, 2), {}});
-  if (!run.trajectory.empty()) sets.push_back({"trajectory", placeOver(run.trajectory, mesh), {}});
+  sets.push_back({"near", nearSurfaceProbes(mesh, s.probes, 3 * s.r, 1), {}, {}});
+  sets.push_back({"uniform", uniformProbes(mesh, s.probes, s.r, 2), {}, {}});
+  if (!run.trajectory.empty()) sets.push_back({"trajectory", placeOver(run.trajectory, mesh), {}, {}});
   {
-    ProbeSet m{"near-morton", sets[0].points, {}};
+    ProbeSet m{"near-morton", sets[0].points, {}, {}};
     sortMorton(m.points);
     sets.push_back(std::move(m));
   }
@@ -586,13 +624,18 @@ void benchMesh(Run& run, const std::string& path) {
       }
       for (auto& peer : peers) {
         const Timing& t = best[peer->name()];
+        const DeepSplit ds = splitDeep(t.ns, probeSet);
         run.peers->row(name, mesh.size(), s.reportD, set->size(), probeSet.name, peer->name(), t.ns.size(), num(t.median),
                        num(t.mean), num(t.p90), num(t.p99), bad[peer->name()], num(maxDiff[peer->name()]),
-                       num(peer->buildMs));
+                       num(peer->buildMs), peer->name() == "clod-grid-cache" ? "stream" : "stateless", ds.deep,
+                       num(ds.shallow.median), num(ds.shallow.mean), num(ds.deepStats.median), num(ds.deepStats.mean));
       }
       const auto& bt = bruteTimes[probeSet.name];
+      const DeepSplit ds = splitDeep(bt.first.ns, probeSet);
       run.peers->row(name, mesh.size(), s.reportD, set->size(), probeSet.name, "brute", bt.first.ns.size(),
-                     num(bt.first.median), num(bt.first.mean), num(bt.first.p90), num(bt.first.p99), bt.second, 0, 0);
+                     num(bt.first.median), num(bt.first.mean), num(bt.first.p90), num(bt.first.p99), bt.second, 0, 0,
+                     "stateless", ds.deep, num(ds.shallow.median), num(ds.shallow.mean), num(ds.deepStats.median),
+                     num(ds.deepStats.mean));
       // Ours: the grid, with its cache on the stylus trajectory (a coherent stream).
       const std::string ours = probeSet.name == "trajectory" ? "clod-grid-cache" : "clod-grid";
       std::cout << "  peers on " << probeSet.name << ": " << ours << " " << best[ours].median << " ns";
@@ -600,6 +643,11 @@ void benchMesh(Run& run, const std::string& path) {
         if (peer->name() != ours)
           std::cout << ", " << peer->name() << " " << best[peer->name()].median << " ns (x"
                     << best[peer->name()].median / std::max(1e-9, best[ours].median) << ")";
+      if (best.count("clod-grid-cache")) {
+        const DeepSplit ds = splitDeep(best["clod-grid-cache"].ns, probeSet);
+        std::cout << "; clod-grid-cache " << ds.deep << " deep points (median " << ds.deepStats.median
+                  << " ns), shallow median " << ds.shallow.median << " ns";
+      }
       std::cout << "\n" << std::flush;
     }
   }
@@ -985,25 +1033,6 @@ std::map<std::string, Timed> timeContenders(const std::vector<const Peer*>& peer
   return best;
 }
 
-struct Stats {
-  double mean = NAN, median = NAN, p90 = NAN, p99 = NAN, max = NAN;
-};
-
-Stats statsOf(std::vector<float> v) {
-  Stats st;
-  if (v.empty()) return st;
-  std::sort(v.begin(), v.end());
-  auto at = [&](double q) { return static_cast<double>(v[std::min(v.size() - 1, static_cast<std::size_t>(q * v.size()))]); };
-  double sum = 0.0;
-  for (float x : v) sum += x;
-  st.mean = sum / v.size();
-  st.median = at(0.5);
-  st.p90 = at(0.9);
-  st.p99 = at(0.99);
-  st.max = v.back();
-  return st;
-}
-
 // One contact.csv row: the statistics of the contender's times on the probes `idx`, its answers against `ref`
 // (contact flag; distance and point to 1e-9); prints the first mismatches.
 Stats contactRow(Run& run, const ModelInfo& info, const std::string& cls, const std::string& who, const Timed& t,
@@ -1268,7 +1297,8 @@ int main(int argc, char** argv) {
   if (has(s, "peers"))
     run.peers = std::make_unique<Csv>(o + "peers.csv",
                                       "mesh,triangles,d,spheres,set,peer,probes,median_ns,mean_ns,p90_ns,p99_ns,"
-                                      "disagreements,max_dist_diff,build_ms");
+                                      "disagreements,max_dist_diff,build_ms,reference,deep_probes,shallow_median_ns,"
+                                      "shallow_mean_ns,deep_median_ns,deep_mean_ns");
   if (has(s, "tightness"))
     run.tight = std::make_unique<Csv>(o + "tightness.csv",
                                       "mesh,triangles,d,kind,spheres,octree_depth,build_ms,open_edges,mesh_volume,"
