@@ -278,21 +278,26 @@ struct ProbeSet {
   std::vector<Vec3> points;
   std::vector<ContactResult> ref;     // stateless: what every contender without a cache answers
   std::vector<ContactResult> stream;  // the same points as one stream with a QueryCache (streamReference)
+  std::vector<bool> deepFree;         // free for both, but the stream searched beyond r (after an inside answer)
 };
 
 // A contender's times on a set split by the stream's deep points: where the stream reference follows the push
 // deeper than r (a contact the stateless reference does not have). There the cached contender searches deeper and
 // answers contact while the stateless ones answer free; the shallow points are the same question for everyone.
+// Among them, deepFree: after an inside answer no triangle within r and the centre outside: free for everyone,
+// but the cached contender found that out with the deep search.
 struct DeepSplit {
-  std::size_t deep = 0;
+  std::size_t deep = 0, deepFree = 0;
   Stats shallow, deepStats;
 };
 
 DeepSplit splitDeep(const std::vector<float>& ns, const ProbeSet& set) {
   DeepSplit out;
   std::vector<float> shallow, deep;
-  for (std::size_t i = 0; i < ns.size(); ++i)
+  for (std::size_t i = 0; i < ns.size(); ++i) {
     (set.stream[i].contact != set.ref[i].contact ? deep : shallow).push_back(ns[i]);
+    out.deepFree += set.deepFree[i];
+  }
   out.deep = deep.size();
   out.shallow = statsOf(std::move(shallow));
   out.deepStats = statsOf(std::move(deep));
@@ -457,11 +462,11 @@ void benchMesh(Run& run, const std::string& path) {
   // Probe sets, in this order: near-surface, uniform, the stylus trajectory; plus the
   // near-surface set sorted along a Morton curve (a coherent stream).
   std::vector<ProbeSet> sets;
-  sets.push_back({"near", nearSurfaceProbes(mesh, s.probes, 3 * s.r, 1), {}, {}});
-  sets.push_back({"uniform", uniformProbes(mesh, s.probes, s.r, 2), {}, {}});
-  if (!run.trajectory.empty()) sets.push_back({"trajectory", placeOver(run.trajectory, mesh), {}, {}});
+  sets.push_back({"near", nearSurfaceProbes(mesh, s.probes, 3 * s.r, 1), {}, {}, {}});
+  sets.push_back({"uniform", uniformProbes(mesh, s.probes, s.r, 2), {}, {}, {}});
+  if (!run.trajectory.empty()) sets.push_back({"trajectory", placeOver(run.trajectory, mesh), {}, {}, {}});
   {
-    ProbeSet m{"near-morton", sets[0].points, {}, {}};
+    ProbeSet m{"near-morton", sets[0].points, {}, {}, {}};
     sortMorton(m.points);
     sets.push_back(std::move(m));
   }
@@ -472,7 +477,14 @@ void benchMesh(Run& run, const std::string& path) {
     // clod-grid-cache runs every set as one stream (in index order, its cache reset at the start), so it
     // follows the push deeper than r after an inside answer; near probes lie within 3r of the surface.
     const PrunedReference deep(mesh, 3.02 * s.r);
-    for (auto& set : sets) set.stream = streamReference(mesh, set.points, set.ref, deep, s.r);
+    const Eigen::AlignedBox3d bounds = mesh.bounds();
+    for (auto& set : sets) {
+      set.stream = streamReference(mesh, set.points, set.ref, deep, s.r);
+      set.deepFree.assign(set.points.size(), false);
+      for (std::size_t i = 1; i < set.points.size(); ++i)
+        set.deepFree[i] = set.stream[i - 1].contact && set.stream[i - 1].inside && !set.stream[i].contact &&
+                          bounds.contains(mesh.toLocal(set.points[i]));
+    }
   }
   std::cout << "  reference on " << sets.size() << " sets: " << secondsSince(t0) << " s\n" << std::flush;
 
@@ -628,14 +640,15 @@ void benchMesh(Run& run, const std::string& path) {
         run.peers->row(name, mesh.size(), s.reportD, set->size(), probeSet.name, peer->name(), t.ns.size(), num(t.median),
                        num(t.mean), num(t.p90), num(t.p99), bad[peer->name()], num(maxDiff[peer->name()]),
                        num(peer->buildMs), peer->name() == "clod-grid-cache" ? "stream" : "stateless", ds.deep,
-                       num(ds.shallow.median), num(ds.shallow.mean), num(ds.deepStats.median), num(ds.deepStats.mean));
+                       num(ds.shallow.median), num(ds.shallow.mean), num(ds.deepStats.median), num(ds.deepStats.mean),
+                       ds.deepFree);
       }
       const auto& bt = bruteTimes[probeSet.name];
       const DeepSplit ds = splitDeep(bt.first.ns, probeSet);
       run.peers->row(name, mesh.size(), s.reportD, set->size(), probeSet.name, "brute", bt.first.ns.size(),
                      num(bt.first.median), num(bt.first.mean), num(bt.first.p90), num(bt.first.p99), bt.second, 0, 0,
                      "stateless", ds.deep, num(ds.shallow.median), num(ds.shallow.mean), num(ds.deepStats.median),
-                     num(ds.deepStats.mean));
+                     num(ds.deepStats.mean), ds.deepFree);
       // Ours: the grid, with its cache on the stylus trajectory (a coherent stream).
       const std::string ours = probeSet.name == "trajectory" ? "clod-grid-cache" : "clod-grid";
       std::cout << "  peers on " << probeSet.name << ": " << ours << " " << best[ours].median << " ns";
@@ -646,7 +659,7 @@ void benchMesh(Run& run, const std::string& path) {
       if (best.count("clod-grid-cache")) {
         const DeepSplit ds = splitDeep(best["clod-grid-cache"].ns, probeSet);
         std::cout << "; clod-grid-cache " << ds.deep << " deep points (median " << ds.deepStats.median
-                  << " ns), shallow median " << ds.shallow.median << " ns";
+                  << " ns), shallow median " << ds.shallow.median << " ns (" << ds.deepFree << " of them searched deep)";
       }
       std::cout << "\n" << std::flush;
     }
@@ -1298,7 +1311,7 @@ int main(int argc, char** argv) {
     run.peers = std::make_unique<Csv>(o + "peers.csv",
                                       "mesh,triangles,d,spheres,set,peer,probes,median_ns,mean_ns,p90_ns,p99_ns,"
                                       "disagreements,max_dist_diff,build_ms,reference,deep_probes,shallow_median_ns,"
-                                      "shallow_mean_ns,deep_median_ns,deep_mean_ns");
+                                      "shallow_mean_ns,deep_median_ns,deep_mean_ns,deep_free_probes");
   if (has(s, "tightness"))
     run.tight = std::make_unique<Csv>(o + "tightness.csv",
                                       "mesh,triangles,d,kind,spheres,octree_depth,build_ms,open_edges,mesh_volume,"
