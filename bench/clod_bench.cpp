@@ -1295,7 +1295,7 @@ int main(int argc, char** argv) {
          << "\nradius," << s.r << "\nprobes_per_set," << s.probes << "\nnear_offset," << 3 * s.r
          << "\nuniform_margin," << s.r << "\ntrajectory,\"" << run.trajectoryNote << "\"\nns_per_tick,"
          << Clock::nsPerTick << "\ntimer_overhead_ns," << Clock::overheadTicks * Clock::nsPerTick
-         << "\nreport_d," << s.reportD << "\nrounds," << s.rounds << "\n";
+         << "\nreport_d," << s.reportD << "\nrounds," << s.rounds << "\nloadavg_before," << loadAverage() << "\n";
   }
   run.build = std::make_unique<Csv>(o + "build.csv",
                                     "mesh,triangles,d,centres,spheres,step_reduction,total_reduction,placement_ms,build_ms,"
@@ -1367,6 +1367,11 @@ int main(int argc, char** argv) {
     }
   }
   if (has(s, "contact")) contactSection(run, meshes, meshDir);
+  // The whole run's length, its sections and the load after it (other jobs share the machine): added to run.csv.
+  std::string sections;
+  for (const std::string& x : s.sections) sections += (sections.empty() ? "" : " ") + x;
+  std::ofstream(o + "run.csv", std::ios::app) << "seconds," << secondsSince(start) << "\nloadavg_after," << loadAverage()
+                                               << "\nsections," << sections << "\n";
   std::cout << "clod_bench: done in " << secondsSince(start) << " s\n";
   return 0;
 }

@@ -115,7 +115,10 @@ def main():
     md.append("# clod_haptics benchmark: run time against error, beside the peers\n")
     md.append(
         f"Run {meta.get('date', '?')} ({meta.get('mode', '?')} mode) on `{meta.get('host', '?')}`, "
-        f"{meta.get('cpu', '?')}, {meta.get('hardware_threads', '?')} hardware threads, shared with other jobs: "
+        f"{meta.get('cpu', '?')}, {meta.get('hardware_threads', '?')} hardware threads, shared with other jobs"
+        + (f" ({f(meta['seconds'])} s, sections {meta.get('sections', '?')}; load average "
+           f"{meta.get('loadavg_before', '?')} before and {meta.get('loadavg_after', '?')} after, 1, 5, 15 min)"
+           if "seconds" in meta else "") + ": "
         "absolute times drift, so compare the ratios, which are measured in the same run, contender after "
         f"contender on the same probes ({meta.get('rounds', '1')} alternating rounds, best median kept).\n"
     )
