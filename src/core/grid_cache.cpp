@@ -1,8 +1,12 @@
 #include "clod_haptics/core/grid_cache.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
+#include <vector>
 
 #include "binary_io.h"
 #include "clod_haptics/core/errors.h"
@@ -193,7 +197,47 @@ CellGrid readCellGridBinary(const std::string& path, const GridCacheKey& key, co
   return grid;
 }
 
-CellGridCache::CellGridCache(std::string directory) : DiskCache(std::move(directory)) {}
+std::uint64_t CellGridCache::defaultMaxBytes() {
+  const char* env = std::getenv("CLOD_GRID_CACHE_MAX_MB");
+  if (env != nullptr && *env != '\0') {
+    char* end = nullptr;
+    const double mb = std::strtod(env, &end);
+    if (end != env && *end == '\0' && mb >= 0.0 && mb < 1e9) return static_cast<std::uint64_t>(mb * 1024.0 * 1024.0);
+  }
+  return 2ull << 30;
+}
+
+CellGridCache::CellGridCache(std::string directory, std::uint64_t maxBytes)
+    : DiskCache(std::move(directory)), maxBytes_(maxBytes > 0 ? maxBytes : defaultMaxBytes()) {}
+
+void CellGridCache::prune(const std::string& keep) const {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  struct File {
+    fs::file_time_type time;
+    std::uint64_t bytes;
+    fs::path path;
+  };
+  std::vector<File> files;
+  std::uint64_t total = 0;
+  for (fs::directory_iterator it(directory(), ec), end; !ec && it != end; it.increment(ec)) {
+    if (it->path().extension() != ".clodgrid") continue;
+    std::error_code e;
+    const std::uint64_t bytes = it->file_size(e);
+    const fs::file_time_type time = it->last_write_time(e);
+    if (e) continue;  // gone meanwhile (another process pruned it)
+    total += bytes;
+    files.push_back({time, bytes, it->path()});
+  }
+  if (total <= maxBytes_) return;
+  std::sort(files.begin(), files.end(), [](const File& a, const File& b) { return a.time < b.time; });
+  for (const File& f : files) {
+    if (total <= maxBytes_) break;
+    if (f.path == fs::path(keep)) continue;
+    std::error_code e;
+    if (fs::remove(f.path, e)) total -= f.bytes;
+  }
+}
 
 std::string CellGridCache::pathFor(const GridCacheKey& key) const {
   return directory() + "/mesh-" + detail::hex64(key.meshHash) + "-d" + detail::hex64(bitsOf(key.distance)) + "-grid-r" +
@@ -221,6 +265,11 @@ CellGrid CellGridCache::getOrBuild(const TriangleMesh& mesh, const GridCacheKey&
         grid = build();
       },
       [&](const std::string& tmp) { writeCellGridBinary(grid, k, mesh.size(), tmp); });
+  std::error_code ec;
+  if (out.source == CacheSource::Hit)  // least recently used goes first: a hit makes the file recent
+    std::filesystem::last_write_time(out.path, std::filesystem::file_time_type::clock::now(), ec);
+  else
+    prune(out.path);
   return grid;
 }
 

@@ -15,6 +15,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "clod_haptics/core/brute_force.h"
@@ -389,6 +390,49 @@ TEST_F(GridCacheFiles, StructuralCorruptionIsATypedError) {
                  "hash table", CellGrid::Index::Hashed);
 }
 
+
+// The grid files stay within the cache's byte budget: the least recently used go first, a hit makes a file
+// recent, the file just stored always stays, and the sphere sets beside them are never touched.
+TEST_F(GridCacheFiles, GridFilesStayWithinTheByteBudget) {
+  TempDir dir;
+  CacheOutcome outcome;
+  GridCacheKey key = level_->key;
+  std::uint64_t oneFile = 0;
+  {
+    CellGridCache probe(dir.str());
+    get(probe, key, outcome);
+    oneFile = std::filesystem::file_size(outcome.path);
+  }
+  const std::string sphereFile = dir.file("mesh-beside.clodsph");
+  writeBytes(sphereFile, std::vector<char>(3 * oneFile, 'x'));  // not a grid file: never counted nor deleted
+  // A budget of two and a half grids: the third store drops the least recently used one.
+  CellGridCache cache(dir.str(), oneFile * 5 / 2);
+  std::vector<std::string> paths;
+  for (double scale : {1.0, 1.25, 1.5}) {
+    key.radius = level_->key.radius * scale;
+    get(cache, key, outcome);
+    paths.push_back(outcome.path);
+    if (scale == 1.25) {  // a hit on the first file makes it the most recent one
+      key.radius = level_->key.radius;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));  // file times are coarse on some file systems
+      get(cache, key, outcome);
+      EXPECT_EQ(outcome.source, CacheSource::Hit);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_TRUE(std::filesystem::exists(paths[0])) << "the recently read grid was deleted";
+  EXPECT_FALSE(std::filesystem::exists(paths[1])) << "the least recently used grid stayed beyond the budget";
+  EXPECT_TRUE(std::filesystem::exists(paths[2])) << "the grid just stored was deleted";
+  EXPECT_TRUE(std::filesystem::exists(sphereFile));
+  // A budget smaller than one grid keeps the one just stored.
+  CellGridCache tiny(dir.str(), 1);
+  key.radius = level_->key.radius * 2.0;
+  get(tiny, key, outcome);
+  EXPECT_TRUE(std::filesystem::exists(outcome.path));
+  std::size_t grids = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir.str())) grids += e.path().extension() == ".clodgrid";
+  EXPECT_EQ(grids, 1u);
+}
 // Not a timed test: prints build and read times on the shared meshes (run with --gtest_also_run_disabled_tests).
 TEST(GridCache, DISABLED_Timing) {
   for (const char* name : {"refined_elephant.off", "mannequin-devil.off"}) {

@@ -54,11 +54,22 @@ CellGrid readCellGridBinary(const std::string& path, const GridCacheKey& key, co
  * radius, CellGrid options, format version), beside the sphere sets in the same directory. The file name
  * "mesh-<hash>-d<bits>-grid-r<bits>-o<options>-v<version>.clodgrid" starts as the sphere set's. Same rules as
  * SphereSetCache: a stale or corrupt file is deleted and rebuilt, files are stored atomically, thread-safe.
+ *
+ * Grids are large (about 8 bytes per candidate, 24 candidates per triangle: 190 MB for a million triangles) and a
+ * reconfigure loop over distances and radii makes one per pair, so the grid files of the directory are kept within
+ * a byte budget: after a store, the least recently used ones (by modification time, which a hit refreshes) are
+ * deleted until the rest fit. The file just stored is never deleted.
  */
 class CellGridCache : public DiskCache {
  public:
-  /** \brief A cache in directory (created on the first store); empty means defaultSphereCacheDirectory(). */
-  explicit CellGridCache(std::string directory = "");
+  /** \brief The default budget of grid files per directory: 2 GiB, or $CLOD_GRID_CACHE_MAX_MB when set. */
+  static std::uint64_t defaultMaxBytes();
+
+  /**
+   * \brief A cache in directory (created on the first store); empty means defaultSphereCacheDirectory(). maxBytes:
+   * the budget of the directory's grid files (0: defaultMaxBytes()).
+   */
+  explicit CellGridCache(std::string directory = "", std::uint64_t maxBytes = 0);
 
   /** \brief The file that holds the grid of key. */
   std::string pathFor(const GridCacheKey& key) const;
@@ -75,6 +86,9 @@ class CellGridCache : public DiskCache {
   std::uint64_t misses() const { return misses_.load(); }
 
  private:
+  void prune(const std::string& keep) const;
+
+  std::uint64_t maxBytes_;
   std::atomic<std::uint64_t> misses_{0};
 };
 
