@@ -1,10 +1,10 @@
 #include "clod_haptics/core/scene_assets.h"
 
 #include <chrono>
-#include <cstring>
 #include <iterator>
 #include <sstream>
 
+#include "binary_io.h"
 #include "clod_haptics/core/errors.h"
 
 namespace clod_haptics {
@@ -68,9 +68,7 @@ std::uint64_t SceneAssets::hashLocked(const std::shared_ptr<const TriangleMesh>&
 
 std::shared_ptr<const ClodSphereSet> SceneAssets::spheresLocked(const std::shared_ptr<const TriangleMesh>& mesh,
                                                                  double distance, LevelInfo& out) {
-  std::uint64_t bits;
-  std::memcpy(&bits, &distance, sizeof(bits));
-  const LevelKey key{mesh.get(), bits};
+  const LevelKey key{mesh.get(), detail::bitsOf(distance)};
   auto knownSet = sets_.find(key);
   if (knownSet != sets_.end() && knownSet->second.first.lock() == mesh) {
     out.shared = true;
@@ -78,7 +76,7 @@ std::shared_ptr<const ClodSphereSet> SceneAssets::spheresLocked(const std::share
     return knownSet->second.second;
   }
   const std::uint64_t h = hashLocked(mesh);
-  dropUnusedLevels(mesh.get(), bits);
+  dropUnusedLevels(mesh.get(), key.second);
   std::shared_ptr<const ClodSphereSet> set;
   if (cache_) {
     set = cache_->getOrBuild(*mesh, h, distance, [&] { return fetchOrBuild(mesh, h, distance, out); }, &out.cache);
@@ -154,14 +152,11 @@ std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<con
   LevelInfo local;
   LevelInfo& out = info ? *info : local;
   out = LevelInfo();
-  std::uint64_t bits;
-  std::memcpy(&bits, &distance, sizeof(bits));
-  const LevelKey key{mesh.get(), bits};
+  const LevelKey key{mesh.get(), detail::bitsOf(distance)};
 
   std::lock_guard<std::mutex> lock(mutex_);
   const double gridRadius = fastLevel == FastLevel::Grid ? gridRadius_ : 0.0;
-  std::uint64_t radiusBits;
-  std::memcpy(&radiusBits, &gridRadius, sizeof(radiusBits));
+  const std::uint64_t radiusBits = detail::bitsOf(gridRadius);
   // Keyed by the mesh object (which the detector and set keep alive), so the detector handed out
   // always refers to the very mesh the caller passed: SceneDetector checks that.
   auto found = levels_.find({key, fastLevel, radiusBits});
