@@ -43,23 +43,32 @@ Vec3 pseudoNormal(const TriangleMesh& mesh, std::uint32_t t, const TriangleRegio
 
 namespace {
 
-// The pseudo-normal of q's feature on triangle t, or the face normal where it is zero.
-Vec3 featureNormal(const TriangleMesh& mesh, const Vec3& p, std::uint32_t t) noexcept {
-  TriangleRegion region;
-  closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), &region);
+// The pseudo-normal of a feature of triangle t, or the face normal where it is zero.
+Vec3 featureNormal(const TriangleMesh& mesh, std::uint32_t t, const TriangleRegion& region) noexcept {
   const Vec3 pn = pseudoNormal(mesh, t, region);
   return pn.allFinite() && !pn.isZero(0.0) ? pn : mesh.normals[t];
+}
+
+// The feature of triangle t that p's closest point lies on.
+TriangleRegion regionOf(const TriangleMesh& mesh, const Vec3& p, std::uint32_t t) noexcept {
+  TriangleRegion region;
+  closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), &region);
+  return region;
 }
 
 }  // namespace
 
 bool pointBehindSurface(const TriangleMesh& mesh, const Vec3& p, std::uint32_t t, const Vec3& q) noexcept {
-  return (p - q).dot(featureNormal(mesh, p, t)) < 0.0;
+  return (p - q).dot(featureNormal(mesh, t, regionOf(mesh, p, t))) < 0.0;
 }
 
 void finishContact(const TriangleMesh& mesh, const Vec3& p, double r, ContactResult& out) noexcept {
-  const std::uint32_t t = static_cast<std::uint32_t>(out.triangle);
-  const Vec3 pn = featureNormal(mesh, p, t);
+  finishContact(mesh, p, r, regionOf(mesh, p, static_cast<std::uint32_t>(out.triangle)), out);
+}
+
+void finishContact(const TriangleMesh& mesh, const Vec3& p, double r, const TriangleRegion& region,
+                   ContactResult& out) noexcept {
+  const Vec3 pn = featureNormal(mesh, static_cast<std::uint32_t>(out.triangle), region);
   const Vec3 v = p - out.point;
   out.inside = v.dot(pn) < 0.0;
   out.depth = out.inside ? r + out.distance : r - out.distance;

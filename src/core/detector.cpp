@@ -31,14 +31,17 @@ struct ClodDetector::Best {
   std::uint32_t triangle = 0;
   std::uint32_t sphere = 0;
   Vec3 point = Vec3::Zero();
+  TriangleRegion region;      // the feature of `triangle` that `point` lies on (exact mode)
+  bool regionKnown = false;   // region holds closestPointOnTriangle's answer (not so in paper mode)
   std::uint32_t tested = 0;
   std::uint32_t hits = 0;
 
   /**
-   * Keeps triangle tri (closest point q, squared distance d2, through sphere) when it is nearer than the
-   * best so far, or as near with a lower index: the tie rule of bruteForceQuery. Returns whether it did.
+   * Keeps triangle tri (closest point q on feature `feature`, or null when unknown; squared distance d2, through
+   * sphere) when it is nearer than the best so far, or as near with a lower index: the tie rule of
+   * bruteForceQuery. Returns whether it did.
    */
-  bool offer(double dist2, std::uint32_t tri, std::uint32_t viaSphere, const Vec3& q) {
+  bool offer(double dist2, std::uint32_t tri, std::uint32_t viaSphere, const Vec3& q, const TriangleRegion* feature) {
     if (!(dist2 < d2 || (dist2 == d2 && (!found || tri < triangle)))) return false;
     d2 = dist2;
     reach = std::sqrt(dist2);
@@ -46,9 +49,26 @@ struct ClodDetector::Best {
     triangle = tri;
     sphere = viaSphere;
     point = q;
+    regionKnown = feature != nullptr;
+    if (regionKnown) region = *feature;
     return true;
   }
 };
+
+namespace {
+// The closest point of p on triangle (a, b, c) as the mode defines it, and its feature when the mode computes
+// one (exact: closestPointOnTriangle; paper: the projection inside the triangle, or nothing). Returns false when
+// the triangle has no such point.
+inline bool closestFor(DetectionMode mode, const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c,
+                       const Vec3& normal, Vec3& q, TriangleRegion*& region) {
+  if (mode == DetectionMode::Exact) {
+    q = closestPointOnTriangle(p, a, b, c, region);
+    return true;
+  }
+  region = nullptr;
+  return projectInsideTriangle(p, a, b, c, normal, q);
+}
+}  // namespace
 
 namespace {
 constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
@@ -61,6 +81,18 @@ std::uint64_t nextDetectorId() {
 }
 
 /** Per triangle, a ball around it (centroid, radius reaching its vertices plus pad), then its three corners. */
+/**
+ * Per triangle, its three corners (9 doubles, copies of the mesh's vertices): the precise test reads one record
+ * instead of the triangle's indices and then its vertices, a dependent load less on every candidate.
+ */
+std::vector<double> cornerRecords(const TriangleMesh& m) {
+  std::vector<double> records(9 * m.size());
+  for (std::size_t t = 0; t < m.size(); ++t)
+    for (int k = 0; k < 3; ++k)
+      for (int j = 0; j < 3; ++j) records[9 * t + 3 * static_cast<std::size_t>(k) + static_cast<std::size_t>(j)] = m.vertex(t, k)[j];
+  return records;
+}
+
 std::vector<double> triangleRecords(const TriangleMesh& m, double pad) {
   std::vector<double> records(kRecord * m.size());
   for (std::size_t t = 0; t < m.size(); ++t) {
@@ -156,13 +188,12 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
     reachBeyondBox_ = std::max(reachBeyondBox_, bounds.exteriorDistance(s.centres[i]) + s.radii[i]);
   }
 
-  // Records for the hierarchy and the flat list; the grid reads the mesh's own arrays instead, also in its
-  // hierarchy fallback.
+  // Records for the hierarchy and the flat list; the grid reads each triangle's corners from one record of its
+  // own, also in its hierarchy fallback.
   if (fastLevel_ != FastLevel::Grid) triangles_ = triangleRecords(m, pad_);
+  if (fastLevel_ == FastLevel::Grid) corners_ = cornerRecords(m);
   sphereData_ = paddedSpheres(s, pad_);
   sphereOfTriangle_ = firstSphereOfTriangles(s, m.size());
-  triangleIndex_ = m.triangles.data();
-  vertices_ = m.vertices.data();
   origin_ = m.origin;
   normals_ = m.normals.data();
 
@@ -197,19 +228,16 @@ inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, 
     a = Vec3(c[0], c[1], c[2]);
     b = Vec3(c[3], c[4], c[5]);
     cc = Vec3(c[6], c[7], c[8]);
-  } else {  // the grid level keeps no records (its hierarchy fallback is for pointers beyond its radius)
-    const Triangle& t = triangleIndex_[tri];
-    a = vertices_[t[0]];
-    b = vertices_[t[1]];
-    cc = vertices_[t[2]];
+  } else {  // the grid level keeps only the corners (its hierarchy fallback is for pointers beyond its radius)
+    const double* c = corners_.data() + 9 * static_cast<std::size_t>(tri);
+    a = Vec3(c[0], c[1], c[2]);
+    b = Vec3(c[3], c[4], c[5]);
+    cc = Vec3(c[6], c[7], c[8]);
   }
   Vec3 q;
-  if (mode == DetectionMode::Exact) {
-    q = closestPointOnTriangle(p, a, b, cc);
-  } else if (!projectInsideTriangle(p, a, b, cc, mesh_->normals[tri], q)) {
-    return;
-  }
-  best.offer((p - q).squaredNorm(), tri, sphere, q);
+  TriangleRegion feature, *region = &feature;
+  if (!closestFor(mode, p, a, b, cc, mesh_->normals[tri], q, region)) return;
+  best.offer((p - q).squaredNorm(), tri, sphere, q, region);
 }
 
 void ClodDetector::preciseFlat(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const {
@@ -250,15 +278,13 @@ void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMod
 // so they stay in cache) rather than from the per-triangle records the other fast levels use.
 inline void ClodDetector::testGridTriangle(std::uint32_t tri, const Vec3& p, DetectionMode mode, Best& best) const {
   ++best.tested;
-  const Triangle& t = triangleIndex_[tri];
-  const Vec3* v = vertices_;
+  const double* c = corners_.data() + 9 * static_cast<std::size_t>(tri);
   Vec3 q;
-  if (mode == DetectionMode::Exact) {
-    q = closestPointOnTriangle(p, v[t[0]], v[t[1]], v[t[2]]);
-  } else if (!projectInsideTriangle(p, v[t[0]], v[t[1]], v[t[2]], mesh_->normals[tri], q)) {
+  TriangleRegion feature, *region = &feature;
+  if (!closestFor(mode, p, Vec3(c[0], c[1], c[2]), Vec3(c[3], c[4], c[5]), Vec3(c[6], c[7], c[8]), normals_[tri], q,
+                  region))
     return;
-  }
-  if (best.offer((p - q).squaredNorm(), tri, kNone, q)) {
+  if (best.offer((p - q).squaredNorm(), tri, kNone, q, region)) {
     // The answer reads them last: start their loads while the scan goes on.
     __builtin_prefetch(normals_ + tri);
     __builtin_prefetch(sphereOfTriangle_.data() + tri);
@@ -295,15 +321,33 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   const double unit = grid_.distanceUnit();
   // The stored directions are scaled by 127; scaling rel instead saves a multiplication per entry.
   const double rx = rel.x() * (1.0 / 127.0), ry = rel.y() * (1.0 / 127.0), rz = rel.z() * (1.0 / 127.0);
+  // Candidates in batches: first the bounds of a batch, with the loads of its survivors' corners started, then
+  // their tests in the same order against the best distance so far (a memory latency for the batch, not one
+  // per candidate). Every candidate whose bound does not exceed the best distance is tested, as in one pass.
+  constexpr std::uint32_t kBatch = 16;
+  double bounds[kBatch];
+  std::uint32_t triangles[kBatch];
   const CellGrid::Entry* e = cell.entries;
-  for (std::uint32_t i = 0; i < cell.count; ++i) {
-    const double dc = e[i].distance * unit;
-    // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
-    if (dc - offset > best.reach) break;
-    // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.
-    const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
-    if (bound - slack > best.reach) continue;
-    testGridTriangle(e[i].triangle, p, mode, best);  // the sphere is looked up once, for the answer
+  for (std::uint32_t i = 0; i < cell.count;) {
+    std::uint32_t n = 0;
+    for (; i < cell.count && n < kBatch; ++i) {
+      const double dc = e[i].distance * unit;
+      // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
+      if (dc - offset > best.reach) {
+        i = cell.count;
+        break;
+      }
+      // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.
+      const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
+      if (bound - slack > best.reach) continue;
+      const double* c = corners_.data() + 9 * static_cast<std::size_t>(e[i].triangle);
+      __builtin_prefetch(c);
+      __builtin_prefetch(c + 8);
+      bounds[n] = bound;
+      triangles[n++] = e[i].triangle;
+    }
+    for (std::uint32_t k = 0; k < n; ++k)
+      if (!(bounds[k] - slack > best.reach)) testGridTriangle(triangles[k], p, mode, best);  // sphere: at the answer
   }
 }
 
@@ -427,7 +471,11 @@ inline void ClodDetector::answer(const Vec3& p, double r, const Best& best, Cont
   out.point = best.point;
   out.distance = std::sqrt(best.d2);
   out.triangle = static_cast<std::int32_t>(best.triangle);
-  finishContact(*mesh_, p, r, out);  // inside, signed depth, outward normal: the rule brute force shares
+  // Inside, signed depth, outward normal: the rule brute force shares (from the winner's feature when known).
+  if (best.regionKnown)
+    finishContact(*mesh_, p, r, best.region, out);
+  else
+    finishContact(*mesh_, p, r, out);
   if (best.deep && !out.inside) {
     // The nearest surface is beyond r and the centre is outside it: no contact.
     out = ContactResult{};

@@ -4,12 +4,15 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <random>
 
+#include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/contact.h"
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/test_config.h"
+#include "test_helpers.h"
 
 namespace clod_haptics {
 namespace {
@@ -79,6 +82,58 @@ TEST(PenaltyForce, OfAPenetrationVectorIsClampedAndNeverNaN) {
   EXPECT_EQ(penaltyForce(Vec3(0.0, 0.0, 0.001), -1.0), Vec3::Zero());
   EXPECT_EQ(penaltyForce(Vec3(std::nan(""), 0.0, 0.0), 400.0), Vec3::Zero());
   EXPECT_EQ(penaltyForce(Vec3(1e300, 0.0, 0.0), 1e300), Vec3::Zero()) << "an overflow is no force";
+}
+
+}  // namespace
+}  // namespace clod_haptics
+
+namespace clod_haptics {
+namespace {
+
+// finishContact from a feature the caller already has (the detector's winner) answers as the one that finds the
+// feature itself: on the torus and every shared mesh, at points around vertices, edges and faces, inside and
+// outside, with the nearest triangle and point from brute force. Some of the points lie where the face's normal
+// alone would give the wrong side (the feature matters there).
+TEST(FinishContact, FromAKnownFeatureAnswersAsFromThePoint) {
+  std::vector<std::shared_ptr<const TriangleMesh>> meshes{torus()};
+  for (const std::string& path : clod_test::sharedMeshes()) meshes.push_back(clod_test::loadNormalized(path));
+  std::size_t regions[3] = {0, 0, 0}, inside = 0, faceWrong = 0;
+  for (const auto& mesh : meshes) {
+    const TriangleMesh& m = *mesh;
+    std::mt19937 rng(5);
+    std::uniform_int_distribution<std::size_t> pick(0, m.size() - 1);
+    for (int n = 0; n < 300; ++n) {
+      const std::size_t t = pick(rng);
+      const double edge = (m.vertex(t, 1) - m.vertex(t, 0)).norm();
+      std::uniform_real_distribution<double> jitter(-edge, edge);
+      const Vec3 targets[3] = {m.vertex(t, 0), 0.5 * (m.vertex(t, 1) + m.vertex(t, 2)),
+                               (m.vertex(t, 0) + m.vertex(t, 1) + m.vertex(t, 2)) / 3.0};
+      for (const Vec3& target : targets) {
+        const Vec3 p = m.toModel(target + Vec3(jitter(rng), jitter(rng), jitter(rng)));
+        ContactResult expected = bruteForceQuery(m, p, 4.0 * edge);
+        if (!expected.contact) continue;
+        const std::uint32_t k = static_cast<std::uint32_t>(expected.triangle);
+        const Vec3 local = m.toLocal(p);
+        TriangleRegion region;
+        const Vec3 q = closestPointOnTriangle(local, m.vertex(k, 0), m.vertex(k, 1), m.vertex(k, 2), &region);
+        ContactResult got = expected;
+        finishContact(m, local, 4.0 * edge, region, got);
+        finishContact(m, local, 4.0 * edge, expected);
+        EXPECT_EQ(got.inside, expected.inside) << "point " << p.transpose();
+        EXPECT_EQ(got.depth, expected.depth);
+        EXPECT_EQ(got.normal, expected.normal);
+        ++regions[static_cast<int>(region.feature)];
+        inside += got.inside;
+        faceWrong += ((local - q).dot(m.normals[k]) < 0.0) != expected.inside;
+      }
+    }
+  }
+  // The points reach every kind of feature, on both sides, and places where the feature decides the side.
+  EXPECT_GT(regions[0], 0u);
+  EXPECT_GT(regions[1], 0u);
+  EXPECT_GT(regions[2], 0u);
+  EXPECT_GT(inside, 0u);
+  EXPECT_GT(faceWrong, 0u);
 }
 
 }  // namespace

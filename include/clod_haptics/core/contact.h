@@ -77,6 +77,14 @@ bool pointBehindSurface(const TriangleMesh& mesh, const Vec3& p, std::uint32_t t
 void finishContact(const TriangleMesh& mesh, const Vec3& p, double r, ContactResult& out) noexcept;
 
 /**
+ * \brief finishContact when the caller already has the feature of out.triangle that out.point lies on, as
+ * closestPointOnTriangle(p, the triangle's vertices, &region) gives it (the same answer, without computing the
+ * closest point again).
+ */
+void finishContact(const TriangleMesh& mesh, const Vec3& p, double r, const TriangleRegion& region,
+                   ContactResult& out) noexcept;
+
+/**
  * \brief The penalty spring force of a penetration vector (depth times the outward normal, summed over the
  * contacts of a scene): stiffness * penetration, clamped to maxForce when maxForce > 0; zero when the stiffness
  * is not positive or the result is not finite. depth is the signed penetration (ContactResult::depth), so the

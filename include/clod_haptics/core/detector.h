@@ -158,12 +158,11 @@ class ClodDetector {
   std::vector<BoxNode> triangleNodes_;
   std::vector<std::uint32_t> triangleOrder_;  // triangle indices in per-sphere leaf order
   std::vector<std::uint32_t> triangleRoot_;   // per sphere: root in triangleNodes_
-  // Grid: the fast level per cell, and the first sphere listing each triangle.
+  // Grid: the fast level per cell, the first sphere listing each triangle, and per triangle its corners (9 doubles).
   CellGrid grid_;
   std::vector<std::uint32_t> sphereOfTriangle_;
-  const Triangle* triangleIndex_ = nullptr;  // the mesh's arrays (kept alive by mesh_)
-  const Vec3* vertices_ = nullptr;
-  const Vec3* normals_ = nullptr;
+  std::vector<double> corners_;
+  const Vec3* normals_ = nullptr;  // the mesh's (kept alive by mesh_)
   Vec3 origin_ = Vec3::Zero();  // the mesh's local origin: p - origin_ in, point + origin_ out
   double reachFromCentre_ = 0.0, reachBeyondBox_ = 0.0;  // see spheresReachFromBoundsCentre()
 };
