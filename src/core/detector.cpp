@@ -93,6 +93,47 @@ std::vector<double> cornerRecords(const TriangleMesh& m) {
   return records;
 }
 
+/**
+ * Nearest child first through a box tree from root, calling leaf(item) for every item of each leaf whose box lies
+ * within sqrt(d2) of p; d2 may shrink during the walk (a closer triangle found), which prunes the rest.
+ */
+template <class Leaf>
+inline void walkBoxTree(const BoxNode* nodes, std::uint32_t root, const std::uint32_t* order, const Vec3& p,
+                        const double& d2, Leaf&& leaf) {
+  std::uint32_t stack[64];
+  int top = 0;
+  stack[top++] = root;
+  while (top > 0) {
+    const BoxNode& node = nodes[stack[--top]];
+    if (squaredDistanceToNode(node, p.x(), p.y(), p.z()) > d2) continue;
+    if (node.count > 0) {
+      for (std::uint32_t i = node.first; i < node.first + node.count; ++i) leaf(order[i]);
+      continue;
+    }
+    const std::uint32_t left = static_cast<std::uint32_t>(&node - nodes) + 1, right = node.first;
+    const double dl = squaredDistanceToNode(nodes[left], p.x(), p.y(), p.z());
+    const double dr = squaredDistanceToNode(nodes[right], p.x(), p.y(), p.z());
+    // Nearer child last on the stack, so it is searched first and shrinks the radius sooner.
+    if (dl <= dr) {
+      if (dr <= d2) stack[top++] = right;
+      if (dl <= d2) stack[top++] = left;
+    } else {
+      if (dl <= d2) stack[top++] = left;
+      if (dr <= d2) stack[top++] = right;
+    }
+  }
+}
+
+/** One box tree over all the triangles of the mesh (leaves of 4), in the local frame. */
+void buildMeshTree(const TriangleMesh& m, double pad, std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order) {
+  std::vector<Eigen::AlignedBox3d> boxes(m.size());
+  for (std::size_t t = 0; t < m.size(); ++t) {
+    boxes[t].setEmpty();
+    for (int v = 0; v < 3; ++v) boxes[t].extend(m.vertex(t, v));
+  }
+  buildBoxTree(boxes, 4, pad, nodes, order);
+}
+
 std::vector<double> triangleRecords(const TriangleMesh& m, double pad) {
   std::vector<double> records(kRecord * m.size());
   for (std::size_t t = 0; t < m.size(); ++t) {
@@ -189,7 +230,7 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   }
 
   // Records for the hierarchy and the flat list; the grid reads each triangle's corners from one record of its
-  // own, also in its hierarchy fallback.
+  // own, also in its tree over the mesh.
   if (fastLevel_ != FastLevel::Grid) triangles_ = triangleRecords(m, pad_);
   if (fastLevel_ == FastLevel::Grid) corners_ = cornerRecords(m);
   sphereData_ = paddedSpheres(s, pad_);
@@ -201,7 +242,12 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
     const std::vector<Eigen::AlignedBox3d> balls = ballBoxes(s);
     buildBoxTree(balls, 4, pad_, sphereNodes_, sphereOrder_);
     buildBoxTree(tightBoxes(m, s, balls), 1, pad_, tightNodes_, tightOrder_);
-    buildTriangleTrees(m, s, pad_, triangleNodes_, triangleOrder_, triangleRoot_);
+    // The hierarchy searches each hit sphere's own triangles; the grid, beyond its radius and for the deep search,
+    // all the triangles at once.
+    if (fastLevel_ == FastLevel::Hierarchy)
+      buildTriangleTrees(m, s, pad_, triangleNodes_, triangleOrder_, triangleRoot_);
+    else
+      buildMeshTree(m, pad_, meshNodes_, meshOrder_);
   }
   // The grid last: its construction peak then meets only the trees kept, not their build's temporaries.
   if (fastLevel_ == FastLevel::Grid) {
@@ -228,7 +274,7 @@ inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, 
     a = Vec3(c[0], c[1], c[2]);
     b = Vec3(c[3], c[4], c[5]);
     cc = Vec3(c[6], c[7], c[8]);
-  } else {  // the grid level keeps only the corners (its hierarchy fallback is for pointers beyond its radius)
+  } else {  // the grid level keeps only the corners
     const double* c = corners_.data() + 9 * static_cast<std::size_t>(tri);
     a = Vec3(c[0], c[1], c[2]);
     b = Vec3(c[3], c[4], c[5]);
@@ -248,30 +294,13 @@ void ClodDetector::preciseFlat(std::uint32_t sphere, const Vec3& p, DetectionMod
 void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const {
   const std::uint32_t root = triangleRoot_[sphere];
   if (root == kNone) return;
-  std::uint32_t stack[64];
-  int top = 0;
-  stack[top++] = root;
-  const BoxNode* nodes = triangleNodes_.data();
-  while (top > 0) {
-    const BoxNode& node = nodes[stack[--top]];
-    if (squaredDistanceToNode(node, p.x(), p.y(), p.z()) > best.d2) continue;
-    if (node.count > 0) {
-      for (std::uint32_t i = node.first; i < node.first + node.count; ++i)
-        testTriangle(triangleOrder_[i], sphere, p, mode, best);
-      continue;
-    }
-    const std::uint32_t left = static_cast<std::uint32_t>(&node - nodes) + 1, right = node.first;
-    const double dl = squaredDistanceToNode(nodes[left], p.x(), p.y(), p.z());
-    const double dr = squaredDistanceToNode(nodes[right], p.x(), p.y(), p.z());
-    // Nearer child last on the stack, so it is searched first and shrinks the radius sooner.
-    if (dl <= dr) {
-      if (dr <= best.d2) stack[top++] = right;
-      if (dl <= best.d2) stack[top++] = left;
-    } else {
-      if (dl <= best.d2) stack[top++] = left;
-      if (dr <= best.d2) stack[top++] = right;
-    }
-  }
+  walkBoxTree(triangleNodes_.data(), root, triangleOrder_.data(), p, best.d2,
+              [&](std::uint32_t t) { testTriangle(t, sphere, p, mode, best); });
+}
+
+void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const {
+  walkBoxTree(meshNodes_.data(), 0, meshOrder_.data(), p, best.d2,
+              [&](std::uint32_t t) { testGridTriangle(t, p, mode, best); });
 }
 
 // The grid's precise test reads the triangle from the mesh's own arrays (indices, vertices: compact,
@@ -430,6 +459,10 @@ inline void ClodDetector::search(const Vec3& p, double radius, DetectionMode mod
     preciseGrid(p, mode, best, cache);
     return;
   }
+  if (!meshNodes_.empty()) {  // the grid level beyond its radius: every triangle within it, through one tree
+    preciseMeshTree(p, mode, best);
+    return;
+  }
   const bool tree = fastLevel_ != FastLevel::Flat && !triangleRoot_.empty();
   // best.reach by reference: the sphere search narrows as closer triangles are found.
   forEachHitSphere(p.x(), p.y(), p.z(), best.reach, tree, [&](std::uint32_t i) {
@@ -452,6 +485,10 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
   }
   if (!box.contains(p)) return;
   const double diagonal = box.diagonal().norm();
+  if (!meshNodes_.empty()) {  // one walk of the tree over the mesh finds the nearest within the diagonal
+    search(p, diagonal, mode, best, cache);
+    return;
+  }
   // At most about 20 rounds from a tiny radius; 2r for a usual one.
   for (double radius = std::max(2.0 * r, diagonal * 0x1p-20);; radius *= 2.0) {
     const double reach = std::min(radius, diagonal);

@@ -17,7 +17,7 @@ namespace clod_haptics {
 enum class FastLevel : std::uint8_t {
   Flat,       ///< the paper: the pointer against every sphere, then every triangle a hit sphere lists
   Hierarchy,  ///< a box tree over the spheres, then a box tree over each sphere's triangles; O(log n)
-  Grid,       ///< the fast level precomputed per grid cell (CellGrid), O(1); Hierarchy beyond its radius
+  Grid,       ///< the fast level precomputed per grid cell (CellGrid), O(1); one box tree over the mesh beyond its radius
 };
 
 /**
@@ -77,12 +77,12 @@ class ClodDetector {
    *
    * Depth is the signed penetration (ContactResult::depth): r - distance outside, r + distance with the
    * centre behind the surface. Deep penetration, the centre more than r behind the surface, has no
-   * triangle within r: with a cache whose last answer was inside (exact or paper mode), the search grows
-   * (radius doubling from 2r, up to the model's bounding-box diagonal, for a centre inside that box) until
-   * it finds the nearest triangle; inside by pointBehindSurface, the answer is that contact (depth
-   * r + distance, as bruteForceSignedQuery), else no contact. Without a cache (stateless queries) a deep
-   * centre answers no contact, as bruteForceQuery. The deep search costs more than a bounded query (the
-   * hierarchy at growing radii; the flat level also scans the mesh's bounds) and still allocates nothing.
+   * triangle within r: with a cache whose last answer was inside (exact or paper mode), the search finds the
+   * nearest triangle within the model's bounding-box diagonal, for a centre inside that box (the grid level: one
+   * walk of its tree over the mesh; the others: radius doubling from 2r); inside by pointBehindSurface, the
+   * answer is that contact (depth r + distance, as bruteForceSignedQuery), else no contact. Without a cache
+   * (stateless queries) a deep centre answers no contact, as bruteForceQuery. The deep search costs more than a
+   * bounded query (the flat level also scans the mesh's bounds) and still allocates nothing.
    */
   void query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
              QueryCache* cache = nullptr) const noexcept;
@@ -130,6 +130,7 @@ class ClodDetector {
   void testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
   void testGridTriangle(std::uint32_t tri, const Vec3& p, DetectionMode mode, Best& best) const;
   void preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const;
+  void preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const;
   // The stages of query(): the spheres mode; the nearest triangle within radius; the growing search of a deep
   // centre; the answer from the search's result.
   void querySpheres(const Vec3& p, double r, ContactResult& out, QueryCache* cache) const;
@@ -148,7 +149,7 @@ class ClodDetector {
   // Per triangle, one record of 13 doubles (two cache lines): a ball around it (centroid and padded
   // radius reaching its vertices) for a cheap reject, then its three corners. Empty for the grid level.
   std::vector<double> triangles_;
-  // Hierarchy: trees over the spheres, and one tree per sphere over its triangles. The ball tree bounds
+  // Hierarchy (and grid): trees over the spheres; hierarchy only: one tree per sphere over its triangles. The ball tree bounds
   // each sphere's ball (spheres mode, display); the tight tree bounds each sphere by the box of the
   // triangles it wraps intersected with its ball, the region where a precise contact through it can lie.
   std::vector<BoxNode> sphereNodes_;
@@ -162,6 +163,9 @@ class ClodDetector {
   CellGrid grid_;
   std::vector<std::uint32_t> sphereOfTriangle_;
   std::vector<double> corners_;
+  // Grid: one tree over all the triangles, for pointers beyond the grid's radius and the deep search.
+  std::vector<BoxNode> meshNodes_;
+  std::vector<std::uint32_t> meshOrder_;
   const Vec3* normals_ = nullptr;  // the mesh's (kept alive by mesh_)
   Vec3 origin_ = Vec3::Zero();  // the mesh's local origin: p - origin_ in, point + origin_ out
   double reachFromCentre_ = 0.0, reachBeyondBox_ = 0.0;  // see spheresReachFromBoundsCentre()
