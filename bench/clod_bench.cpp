@@ -901,12 +901,14 @@ struct ModelInfo {
 // threads) and CGAL's tree build, each the best of the rounds. Returns the 1-thread Embree and CGAL peers.
 std::vector<std::unique_ptr<Peer>> startupRows(Run& run, const ModelInfo& info, const TriangleMesh& mesh, const Ours& ours) {
   const double tri = static_cast<double>(mesh.size());
-  auto row = [&](const std::string& who, unsigned threads, double ms, double setupMs, double p, double b, double d) {
+  auto row = [&](const std::string& who, unsigned threads, double ms, double setupMs, double p, double b, double d,
+                 double keptBytes) {
     run.startup->row(info.name, info.kind, mesh.size(), who, threads, num(ms), num(ms * 1e6 / tri),
-                     num(tri / (ms * 1e-3)), num(setupMs), num(p), num(b), num(d), info.spheres);
+                     num(tri / (ms * 1e-3)), num(setupMs), num(p), num(b), num(d), info.spheres, num(keptBytes / tri));
   };
   const unsigned ourThreads = std::min(4u, std::max(1u, std::thread::hardware_concurrency()));
-  row("clod-grid", ourThreads, ours.totalMs(), ours.totalMs(), ours.placementMs, ours.buildMs, ours.detectorMs);
+  row("clod-grid", ourThreads, ours.totalMs(), ours.totalMs(), ours.placementMs, ours.buildMs, ours.detectorMs,
+      static_cast<double>(ours.detector->bytes()));
   const std::vector<std::pair<std::string, int>> contenders{{"embree", 1}, {"embree-2t", 2}, {"cgal", 1}};
   std::vector<std::unique_ptr<Peer>> kept;
   for (const auto& [who, threads] : contenders) {
@@ -920,7 +922,7 @@ std::vector<std::unique_ptr<Peer>> startupRows(Run& run, const ModelInfo& info, 
       std::cout << "  " << who << " failed to build: " << e.what() << "\n";
       continue;
     }
-    row(who, threads, best->indexMs, best->buildMs, NAN, NAN, NAN);
+    row(who, threads, best->indexMs, best->buildMs, NAN, NAN, NAN, NAN);
     if (who != "embree-2t") kept.push_back(std::move(best));
   }
   return kept;
@@ -1173,7 +1175,7 @@ void contactSection(Run& run, const std::vector<std::string>& sharedPaths, const
                                       "p90_ns,p99_ns,max_ns,mismatches,max_dist_diff");
   run.startup = std::make_unique<Csv>(o + "startup.csv",
                                       "model,kind,triangles,contender,threads,ms,ns_per_tri,tri_per_s,setup_ms,"
-                                      "placement_ms,build_ms,detector_ms,spheres");
+                                      "placement_ms,build_ms,detector_ms,spheres,detector_bytes_per_tri");
   run.models = std::make_unique<Csv>(o + "contact_models.csv",
                                      "model,kind,source,triangles,spheres,mean_edge_over_r,min_aspect,median_aspect,"
                                      "open_edges,probes,probe_contacts,path_points,seconds");

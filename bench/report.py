@@ -820,6 +820,7 @@ def startup_rows(models, startup):
         rows.append([
             m, o["triangles"], o["spheres"], f(o["ms"]), f(o["ns_per_tri"]), f(o["tri_per_s"]),
             f"{f(o['placement_ms'])} / {f(o['build_ms'])} / {f(o['detector_ms'])}",
+            f(o.get("detector_bytes_per_tri", "nan")),
             f"{f(e['ms'])} ({f(e['tri_per_s'])})" if e else "-",
             f"{f(e2['ms'])} ({f(e2['tri_per_s'])})" if e2 else "-",
             f"{f(c['ms'])} ({f(c['tri_per_s'])})" if c else "-",
@@ -861,7 +862,7 @@ def contact_section(out):
         "threads; CGAL: the AABB tree's build and `accelerate_distance_queries` (1 thread). Best of the rounds. "
         "Ratios: the peer's time / ours (below 1 the peer starts faster).\n")
     md.append(table(["model", "triangles", "spheres", "ours ms", "ns/tri", "tri/s", "placement / build / detector ms",
-                     "Embree 1t ms (tri/s)", "Embree 2t ms (tri/s)", "CGAL ms (tri/s)", "Embree/ours",
+                     "detector B/tri", "Embree 1t ms (tri/s)", "Embree 2t ms (tri/s)", "CGAL ms (tri/s)", "Embree/ours",
                      "CGAL/ours"], startup_rows(models, startup)))
     return md
 

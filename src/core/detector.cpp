@@ -82,18 +82,6 @@ std::uint64_t nextDetectorId() {
 
 /** Per triangle, a ball around it (centroid, radius reaching its vertices plus pad), then its three corners. */
 /**
- * Per triangle, its three corners (9 doubles, copies of the mesh's vertices): the precise test reads one record
- * instead of the triangle's indices and then its vertices, a dependent load less on every candidate.
- */
-std::vector<double> cornerRecords(const TriangleMesh& m) {
-  std::vector<double> records(9 * m.size());
-  for (std::size_t t = 0; t < m.size(); ++t)
-    for (int k = 0; k < 3; ++k)
-      for (int j = 0; j < 3; ++j) records[9 * t + 3 * static_cast<std::size_t>(k) + static_cast<std::size_t>(j)] = m.vertex(t, k)[j];
-  return records;
-}
-
-/**
  * Nearest child first through a box tree from root, calling leaf(item) for every item of each leaf whose box lies
  * within sqrt(d2) of p; d2 may shrink during the walk (a closer triangle found), which prunes the rest.
  */
@@ -229,12 +217,13 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
     reachBeyondBox_ = std::max(reachBeyondBox_, bounds.exteriorDistance(s.centres[i]) + s.radii[i]);
   }
 
-  // Records for the hierarchy and the flat list; the grid reads each triangle's corners from one record of its
-  // own, also in its tree over the mesh.
+  // Records for the hierarchy and the flat list; the grid reads the mesh's own arrays instead (compact, so they
+  // stay in cache), also in its tree over the mesh.
   if (fastLevel_ != FastLevel::Grid) triangles_ = triangleRecords(m, pad_);
-  if (fastLevel_ == FastLevel::Grid) corners_ = cornerRecords(m);
   sphereData_ = paddedSpheres(s, pad_);
   sphereOfTriangle_ = firstSphereOfTriangles(s, m.size());
+  triangleIndex_ = m.triangles.data();
+  vertices_ = m.vertices.data();
   origin_ = m.origin;
   normals_ = m.normals.data();
 
@@ -261,6 +250,20 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   }
 }
 
+namespace {
+template <class T>
+std::size_t bytesOf(const std::vector<T>& v) {
+  return v.capacity() * sizeof(T);
+}
+}  // namespace
+
+std::size_t ClodDetector::bytes() const noexcept {
+  return sizeof(*this) + grid_.bytes() + bytesOf(sphereData_) + bytesOf(triangles_) + bytesOf(sphereNodes_) +
+         bytesOf(sphereOrder_) + bytesOf(tightNodes_) + bytesOf(tightOrder_) + bytesOf(triangleNodes_) +
+         bytesOf(triangleOrder_) + bytesOf(triangleRoot_) + bytesOf(sphereOfTriangle_) +
+         bytesOf(meshNodes_) + bytesOf(meshOrder_);
+}
+
 inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode,
                                        Best& best) const {
   ++best.tested;
@@ -274,11 +277,11 @@ inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, 
     a = Vec3(c[0], c[1], c[2]);
     b = Vec3(c[3], c[4], c[5]);
     cc = Vec3(c[6], c[7], c[8]);
-  } else {  // the grid level keeps only the corners
-    const double* c = corners_.data() + 9 * static_cast<std::size_t>(tri);
-    a = Vec3(c[0], c[1], c[2]);
-    b = Vec3(c[3], c[4], c[5]);
-    cc = Vec3(c[6], c[7], c[8]);
+  } else {  // the grid level keeps no records
+    const Triangle& t = triangleIndex_[tri];
+    a = vertices_[t[0]];
+    b = vertices_[t[1]];
+    cc = vertices_[t[2]];
   }
   Vec3 q;
   TriangleRegion feature, *region = &feature;
@@ -307,12 +310,11 @@ void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best
 // so they stay in cache) rather than from the per-triangle records the other fast levels use.
 inline void ClodDetector::testGridTriangle(std::uint32_t tri, const Vec3& p, DetectionMode mode, Best& best) const {
   ++best.tested;
-  const double* c = corners_.data() + 9 * static_cast<std::size_t>(tri);
+  const Triangle& t = triangleIndex_[tri];
+  const Vec3* v = vertices_;
   Vec3 q;
   TriangleRegion feature, *region = &feature;
-  if (!closestFor(mode, p, Vec3(c[0], c[1], c[2]), Vec3(c[3], c[4], c[5]), Vec3(c[6], c[7], c[8]), normals_[tri], q,
-                  region))
-    return;
+  if (!closestFor(mode, p, v[t[0]], v[t[1]], v[t[2]], normals_[tri], q, region)) return;
   if (best.offer((p - q).squaredNorm(), tri, kNone, q, region)) {
     // The answer reads them last: start their loads while the scan goes on.
     __builtin_prefetch(normals_ + tri);
@@ -350,33 +352,15 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   const double unit = grid_.distanceUnit();
   // The stored directions are scaled by 127; scaling rel instead saves a multiplication per entry.
   const double rx = rel.x() * (1.0 / 127.0), ry = rel.y() * (1.0 / 127.0), rz = rel.z() * (1.0 / 127.0);
-  // Candidates in batches: first the bounds of a batch, with the loads of its survivors' corners started, then
-  // their tests in the same order against the best distance so far (a memory latency for the batch, not one
-  // per candidate). Every candidate whose bound does not exceed the best distance is tested, as in one pass.
-  constexpr std::uint32_t kBatch = 16;
-  double bounds[kBatch];
-  std::uint32_t triangles[kBatch];
   const CellGrid::Entry* e = cell.entries;
-  for (std::uint32_t i = 0; i < cell.count;) {
-    std::uint32_t n = 0;
-    for (; i < cell.count && n < kBatch; ++i) {
-      const double dc = e[i].distance * unit;
-      // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
-      if (dc - offset > best.reach) {
-        i = cell.count;
-        break;
-      }
-      // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.
-      const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
-      if (bound - slack > best.reach) continue;
-      const double* c = corners_.data() + 9 * static_cast<std::size_t>(e[i].triangle);
-      __builtin_prefetch(c);
-      __builtin_prefetch(c + 8);
-      bounds[n] = bound;
-      triangles[n++] = e[i].triangle;
-    }
-    for (std::uint32_t k = 0; k < n; ++k)
-      if (!(bounds[k] - slack > best.reach)) testGridTriangle(triangles[k], p, mode, best);  // sphere: at the answer
+  for (std::uint32_t i = 0; i < cell.count; ++i) {
+    const double dc = e[i].distance * unit;
+    // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
+    if (dc - offset > best.reach) break;
+    // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.
+    const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
+    if (bound - slack > best.reach) continue;
+    testGridTriangle(e[i].triangle, p, mode, best);  // the sphere is looked up once, for the answer
   }
 }
 

@@ -587,6 +587,21 @@ TEST(ClodDetector, ACacheNeverReadsAFreedDetectorReusedAtItsAddress) {
 #endif
 }
 
+// bytes() counts what each level keeps: at least a few bytes a triangle (grid, tree over the mesh) for the grid
+// level, a record of 13 doubles per triangle for the hierarchy and the flat list; and no more than a few KB a
+// triangle on a mesh of thousands.
+TEST(ClodDetector, BytesCountWhatTheLevelKeeps) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("elephant.off"));
+  const auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
+  const double n = static_cast<double>(mesh->size());
+  const ClodDetector grid(mesh, set, FastLevel::Grid, 0.005), flat(mesh, set, FastLevel::Flat);
+  const ClodDetector tree(mesh, set, FastLevel::Hierarchy);
+  EXPECT_GE(static_cast<double>(grid.bytes()), 8.0 * n);  // the grid and the tree over the mesh
+  EXPECT_GE(static_cast<double>(flat.bytes()), 104.0 * n);
+  EXPECT_GT(tree.bytes(), flat.bytes());  // the same records, and the trees
+  for (const ClodDetector* d : {&grid, &flat, &tree}) EXPECT_LT(static_cast<double>(d->bytes()), 4000.0 * n);
+}
+
 TEST(ClodDetector, IdsAreUniqueAndNeverZero) {
   const auto mesh = clod_test::loadNormalized(clod_test::testData("../../data/meshes/torus.obj"));
   const auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));

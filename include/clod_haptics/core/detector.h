@@ -113,7 +113,12 @@ class ClodDetector {
    */
   double spheresReachFromBoundsCentre() const noexcept { return reachFromCentre_; }
   double spheresReachBeyondBounds() const noexcept { return reachBeyondBox_; }
-  /** \brief The largest pointer radius the grid serves (0 without a grid): larger radii take the hierarchy. */
+  /**
+   * \brief Bytes of the arrays this detector keeps (its grid, trees, records and sphere data), without the mesh and
+   * the sphere set it shares.
+   */
+  std::size_t bytes() const noexcept;
+  /** \brief The largest pointer radius the grid serves (0 without a grid): larger radii take the tree over the mesh. */
   double gridRadius() const noexcept { return grid_.empty() ? 0.0 : grid_.radius(); }
   /**
    * \brief A number unique to this detector within the process (a counter stamped at construction,
@@ -159,14 +164,15 @@ class ClodDetector {
   std::vector<BoxNode> triangleNodes_;
   std::vector<std::uint32_t> triangleOrder_;  // triangle indices in per-sphere leaf order
   std::vector<std::uint32_t> triangleRoot_;   // per sphere: root in triangleNodes_
-  // Grid: the fast level per cell, the first sphere listing each triangle, and per triangle its corners (9 doubles).
+  // Grid: the fast level per cell, and the first sphere listing each triangle.
   CellGrid grid_;
   std::vector<std::uint32_t> sphereOfTriangle_;
-  std::vector<double> corners_;
   // Grid: one tree over all the triangles, for pointers beyond the grid's radius and the deep search.
   std::vector<BoxNode> meshNodes_;
   std::vector<std::uint32_t> meshOrder_;
-  const Vec3* normals_ = nullptr;  // the mesh's (kept alive by mesh_)
+  const Triangle* triangleIndex_ = nullptr;  // the mesh's arrays (kept alive by mesh_)
+  const Vec3* vertices_ = nullptr;
+  const Vec3* normals_ = nullptr;
   Vec3 origin_ = Vec3::Zero();  // the mesh's local origin: p - origin_ in, point + origin_ out
   double reachFromCentre_ = 0.0, reachBeyondBox_ = 0.0;  // see spheresReachFromBoundsCentre()
 };
