@@ -34,7 +34,7 @@ def ours_for(probe_set):
 # points (see DEEP_WORDS) are a different question from the stateless contenders'.
 SHALLOW_SETS = {"trajectory"}
 DEEP_WORDS = ("the centre more than r behind the surface after an answer with the centre inside: the cached stream "
-              "follows the push there (ClodDetector::query's deep search, radius doubling from 2r) and answers "
+              "follows the push there (ClodDetector::query's deep search: the nearest triangle through the grid level's tree over the mesh) and answers "
               "contact, where the stateless contenders and reference answer free")
 
 
