@@ -152,6 +152,9 @@ void applyEnvironment(Device& d) {
       d.oneShotError = code;
     }
   }
+  if (const char* f = std::getenv("CLOD_FAKE_HD_NOMINAL_FORCES")) {
+    std::sscanf(f, "%lf,%lf", &d.peakForce, &d.continuousForce);
+  }
   if (const char* p = std::getenv("CLOD_FAKE_HD_POSITION")) {
     double x = 0, y = 0, z = 0;
     if (std::sscanf(p, "%lf,%lf,%lf", &x, &y, &z) == 3) {
