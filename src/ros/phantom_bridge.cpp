@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
 
 #include "clod_haptics/device/simulated_device.h"
@@ -22,6 +23,10 @@ double steadyNow() {
 }
 
 const char* kJointNames[6] = {"waist", "shoulder", "elbow", "yaw", "pitch", "roll"};
+
+double wallNow() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
 
 Eigen::Vector3d readVector(const ros::NodeHandle& pnh, const std::string& key, const Eigen::Vector3d& fallback) {
   std::vector<double> values;
@@ -195,7 +200,7 @@ void PhantomBridge::stop() {
   device_->stop();
   const double elapsed = steadyNow() - startWall_;
   const ForceSafetyCounters& c = safety_.counters();
-  char summary[512];
+  char summary[1024];
   int n = std::snprintf(summary, sizeof(summary),
                         "phantom_bridge: %llu ticks in %.1f s (%.0f Hz); forces clamped %llu, non-finite %llu, "
                         "stale %llu, rate-limited %llu",
@@ -209,6 +214,13 @@ void PhantomBridge::stop() {
                   "p50 %.0f us, p99 %.0f us, p99.9 %.0f us, max %.0f us",
                   static_cast<unsigned long long>(loop->count()), loop->percentileUs(50), loop->percentileUs(99),
                   loop->percentileUs(99.9), loop->maxUs());
+    n = static_cast<int>(std::strlen(summary));
+    std::snprintf(summary + n, sizeof(summary) - static_cast<std::size_t>(n),
+                  "; device read -> force handed to the device p50 %.0f us, p99 %.0f us, max %.0f us; of which "
+                  "device read -> pose published p50 %.0f us, p99 %.0f us, force received -> handed over p50 %.0f "
+                  "us, p99 %.0f us",
+                  handOver_.percentileUs(50), handOver_.percentileUs(99), handOver_.maxUs(), poseWait_.percentileUs(50),
+                  poseWait_.percentileUs(99), forceWait_.percentileUs(50), forceWait_.percentileUs(99));
   }
   // After shutdown (Ctrl-C) rosconsole prints nothing: the summary goes to stdout then.
   if (ros::ok()) {
@@ -301,6 +313,7 @@ void PhantomBridge::tick(double now) {
   if (device_->read(state)) {
     lastStateAt_ = now;
     publishState(state);
+    if (state.stamp > 0.0) poseWait_.record(static_cast<std::int64_t>((steadyNow() - state.time) * 1e9));
   } else {
     noState(now);
     if (!running_) return;
@@ -316,6 +329,11 @@ void PhantomBridge::tick(double now) {
   ForceStatus status;
   const Eigen::Vector3d force = safety_.update(command, now, &status);
   device_->commandForceFor(force, ros::Time::isSimTime() ? 0.0 : commandStamp);
+  if (command.valid && commandStamp != lastHandedStamp_) {
+    forceWait_.record(static_cast<std::int64_t>((steadyNow() - command.receivedAt) * 1e9));
+    if (commandStamp > 0.0) handOver_.record(static_cast<std::int64_t>((wallNow() - commandStamp) * 1e9));
+    lastHandedStamp_ = commandStamp;
+  }
 
   if (status == ForceStatus::NonFinite) {
     ROS_WARN_THROTTLE(1.0, "phantom_bridge: non-finite force command (%g, %g, %g): rendering zero force",

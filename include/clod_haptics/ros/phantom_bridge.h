@@ -122,6 +122,13 @@ class PhantomBridge {
   ForceStatus lastStatus_ = ForceStatus::NoCommand;
   double startWall_ = 0.0;
   double lastStateAt_ = 0.0;  // tick thread: when read() last gave a state (or the start)
+  // Where the force loop's time goes (devices that time their states, OpenHaptics): from the device read to
+  // the pose's publication, and from a force's arrival to its hand-over to the device. Tick thread.
+  // And from the device read to the force's hand-over (the loop without the servo callback's next tick).
+  LatencyHistogram poseWait_;
+  LatencyHistogram forceWait_;
+  LatencyHistogram handOver_;
+  double lastHandedStamp_ = 0.0;
   mutable std::mutex failureMutex_;
   std::string failure_;  // guarded by failureMutex_
 };

@@ -238,6 +238,17 @@ void getValues(HDenum pname, T* out) {
   }
 }
 
+// Runs f(device) under the lock, or reports HD_BAD_HANDLE for a handle that is not an open device.
+template <typename F>
+void withDevice(HHD handle, F f) {
+  std::lock_guard<std::mutex> lock(g.mutex);
+  if (Device* d = deviceLocked(handle)) {
+    f(*d);
+  } else {
+    pushError(HD_BAD_HANDLE, handle);
+  }
+}
+
 Device* controlled(HHD handle) { return handle < g.devices.size() ? g.devices[handle].get() : nullptr; }
 
 }  // namespace
@@ -267,46 +278,27 @@ HHD HDAPIENTRY hdInitDevice(HDstring name) {
 }
 
 void HDAPIENTRY hdMakeCurrentDevice(HHD handle) {
-  std::lock_guard<std::mutex> lock(g.mutex);
-  if (!deviceLocked(handle)) {
-    pushError(HD_BAD_HANDLE, handle);
-    return;
-  }
-  g.current = handle;
+  withDevice(handle, [&](Device&) { g.current = handle; });
 }
 
 void HDAPIENTRY hdDisableDevice(HHD handle) {
-  std::lock_guard<std::mutex> lock(g.mutex);
-  Device* d = deviceLocked(handle);
-  if (!d) {
-    pushError(HD_BAD_HANDLE, handle);
-    return;
-  }
-  d->enabled = false;
-  std::fill(d->sentForce, d->sentForce + 3, 0.0);
+  withDevice(handle, [](Device& d) {
+    d.enabled = false;
+    std::fill(d.sentForce, d.sentForce + 3, 0.0);
+  });
 }
 
 HHD HDAPIENTRY hdGetCurrentDevice() { return g.current.load(); }
 
 void HDAPIENTRY hdBeginFrame(HHD handle) {
-  std::lock_guard<std::mutex> lock(g.mutex);
-  Device* d = deviceLocked(handle);
-  if (!d) {
-    pushError(HD_BAD_HANDLE, handle);
-    return;
-  }
-  g.current = handle;
-  beginFrameLocked(*d, handle);
+  withDevice(handle, [&](Device& d) {
+    g.current = handle;
+    beginFrameLocked(d, handle);
+  });
 }
 
 void HDAPIENTRY hdEndFrame(HHD handle) {
-  std::lock_guard<std::mutex> lock(g.mutex);
-  Device* d = deviceLocked(handle);
-  if (!d) {
-    pushError(HD_BAD_HANDLE, handle);
-    return;
-  }
-  endFrameLocked(*d, handle);
+  withDevice(handle, [&](Device& d) { endFrameLocked(d, handle); });
 }
 
 HDErrorInfo HDAPIENTRY hdGetError() {
