@@ -92,7 +92,7 @@ void OpenHapticsDevice::start() {
   HDint styles = 0;
   hdGetIntegerv(HD_CALIBRATION_STYLE, &styles);
   // The drivers' preference: automatic, else the inkwell, else an encoder reset.
-  calibrationStyle_ = (styles & HD_CALIBRATION_AUTO)       ? HD_CALIBRATION_AUTO
+  calibrationStyle_ = (styles & HD_CALIBRATION_AUTO)      ? HD_CALIBRATION_AUTO
                       : (styles & HD_CALIBRATION_INKWELL) ? HD_CALIBRATION_INKWELL
                                                           : HD_CALIBRATION_ENCODER_RESET;
   HDdouble peak = 0.0, continuous = 0.0;
@@ -232,8 +232,8 @@ bool OpenHapticsDevice::read(DeviceState& state) {
   state.position = deviceToRos() * positionMm * 0.001 + rosRotation * options_.tipOffset;
   state.orientation = Eigen::Quaterniond(rosRotation).normalized();
   state.joints = driverJointStates(s.joints, s.gimbal, options_.joints);
-  state.buttons = ((s.buttons & HD_DEVICE_BUTTON_1) ? kGreyButton : 0u) |
-                  ((s.buttons & HD_DEVICE_BUTTON_2) ? kWhiteButton : 0u);
+  state.buttons =
+      ((s.buttons & HD_DEVICE_BUTTON_1) ? kGreyButton : 0u) | ((s.buttons & HD_DEVICE_BUTTON_2) ? kWhiteButton : 0u);
   return true;
 }
 
@@ -249,14 +249,17 @@ DeviceCondition OpenHapticsDevice::condition() const {
 std::string OpenHapticsDevice::conditionText() const {
   const Sample& s = samples_.front();
   switch (condition()) {
-    case DeviceCondition::Ok: return {};
-    case DeviceCondition::NotStarted: return name() + ": no servo frame yet";
+    case DeviceCondition::Ok:
+      return {};
+    case DeviceCondition::NotStarted:
+      return name() + ": no servo frame yet";
     case DeviceCondition::FrameError:
       return name() + ": device error in the last servo frame: " + hdErrorText(s.errorCode, s.internalError);
     case DeviceCondition::Failed:
       return name() + ": the servo loop stopped on " + hdErrorText(failCode_.load(), failInternal_.load()) +
              ": communication with the device is lost (unplugged, powered off, or its driver stopped)";
-    case DeviceCondition::Calibrating: break;
+    case DeviceCondition::Calibrating:
+      break;
   }
   const char* what = calibrationStyle_ == HD_CALIBRATION_INKWELL ? "put the stylus in the inkwell"
                      : calibrationStyle_ == HD_CALIBRATION_AUTO

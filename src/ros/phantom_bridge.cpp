@@ -24,9 +24,7 @@ double steadyNow() {
 
 const char* kJointNames[6] = {"waist", "shoulder", "elbow", "yaw", "pitch", "roll"};
 
-double wallNow() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
+double wallNow() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
 
 Eigen::Vector3d readVector(const ros::NodeHandle& pnh, const std::string& key, const Eigen::Vector3d& fallback) {
   std::vector<double> values;
@@ -171,8 +169,8 @@ void PhantomBridge::checkRatings() {
                       std::to_string(r.peak) + " N, HD_NOMINAL_MAX_FORCE for OpenHaptics)");
   }
   if (maxForce > r.continuous) {
-    ROS_WARN("~max_force %.2f N is above the device's continuous rating (%.2f N): only for short contacts",
-             maxForce, r.continuous);
+    ROS_WARN("~max_force %.2f N is above the device's continuous rating (%.2f N): only for short contacts", maxForce,
+             r.continuous);
   }
 }
 

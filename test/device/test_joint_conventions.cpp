@@ -17,12 +17,12 @@ constexpr double kPi = 3.14159265358979323846;
 
 TEST(JointConventions, OmniCommonNegatesTheWaistAndTakesTheElbowRelativeToTheShoulder) {
   const auto q = driverJointStates(kJoints, kGimbal, JointConvention::OmniCommon);
-  EXPECT_DOUBLE_EQ(q[0], -0.1);                   // waist = -j0
-  EXPECT_DOUBLE_EQ(q[1], 0.2);                    // shoulder = j1
-  EXPECT_DOUBLE_EQ(q[2], 0.3);                    // elbow = j2 - j1
-  EXPECT_DOUBLE_EQ(q[3], kPi - 0.3);              // yaw = -g0 + pi
-  EXPECT_DOUBLE_EQ(q[4], 0.4 - 0.75 * kPi);       // pitch = -g1 - 3 pi / 4
-  EXPECT_DOUBLE_EQ(q[5], -1.0 - kPi);             // roll = -g2 - pi
+  EXPECT_DOUBLE_EQ(q[0], -0.1);              // waist = -j0
+  EXPECT_DOUBLE_EQ(q[1], 0.2);               // shoulder = j1
+  EXPECT_DOUBLE_EQ(q[2], 0.3);               // elbow = j2 - j1
+  EXPECT_DOUBLE_EQ(q[3], kPi - 0.3);         // yaw = -g0 + pi
+  EXPECT_DOUBLE_EQ(q[4], 0.4 - 0.75 * kPi);  // pitch = -g1 - 3 pi / 4
+  EXPECT_DOUBLE_EQ(q[5], -1.0 - kPi);        // roll = -g2 - pi
 }
 
 TEST(JointConventions, GeomagicControlDiffersOnlyInTheRollSign) {

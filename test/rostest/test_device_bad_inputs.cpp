@@ -114,9 +114,9 @@ TEST(DeviceBadInputs, PhantomBridgeExitsWhenTheDeviceIsUnplugged) {
 
 TEST(DeviceBadInputs, PhantomBridgeExitsWhenEveryFrameHasAnError) {
   // HD_DEVICE_FAULT (0x300) in every frame: no state for ~device_timeout.
-  expectCleanFailure(run("env CLOD_FAKE_HD_ERROR=0x300:persistent " + kFakeBridge +
-                         " __name:=pb_fault _device_timeout:=0.5"),
-                     "Device fault");
+  expectCleanFailure(
+      run("env CLOD_FAKE_HD_ERROR=0x300:persistent " + kFakeBridge + " __name:=pb_fault _device_timeout:=0.5"),
+      "Device fault");
 }
 
 TEST(DeviceBadInputs, PhantomBridgeRefusesAMaxForceAboveTheDevicesPeak) {

@@ -13,9 +13,7 @@
 namespace {
 
 struct PoseListener {
-  explicit PoseListener(const std::string& topic) {
-    sub = nh.subscribe(topic, 10, &PoseListener::onPose, this);
-  }
+  explicit PoseListener(const std::string& topic) { sub = nh.subscribe(topic, 10, &PoseListener::onPose, this); }
   void onPose(const geometry_msgs::PoseStamped::ConstPtr& msg) {
     x = msg->pose.position.x;
     y = msg->pose.position.y;

@@ -109,7 +109,7 @@ class PhantomBridge {
   ros::Subscriber forceSub_;
 
   std::mutex commandMutex_;
-  ForceCommand command_;  // guarded by commandMutex_
+  ForceCommand command_;       // guarded by commandMutex_
   double commandStamp_ = 0.0;  // guarded by commandMutex_: header.stamp of the command (the pose it answers)
 
   std::thread servo_;

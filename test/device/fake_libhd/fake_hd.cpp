@@ -5,6 +5,9 @@
 // reads the device and sends the force), a per-thread error stack read most recent first, calibration
 // states, and a test control API (fake_hd_control.h). Semantics not checked against a device are
 // marked "assumed".
+#include <HD/hd.h>
+#include <HDU/hduError.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -18,9 +21,6 @@
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <HD/hd.h>
-#include <HDU/hduError.h>
 #undef min
 #undef max
 
@@ -85,7 +85,9 @@ struct State {
 State g;
 thread_local std::vector<HDErrorInfo> tErrors;  // assumed per thread, like the SDK's error stack
 
-void pushError(HDerror code, HHD device) { tErrors.push_back(HDErrorInfo{code, static_cast<int>(code) + 0x10000, device}); }
+void pushError(HDerror code, HHD device) {
+  tErrors.push_back(HDErrorInfo{code, static_cast<int>(code) + 0x10000, device});
+}
 
 Device* deviceLocked(HHD handle) {
   if (handle >= g.devices.size() || !g.devices[handle] || !g.devices[handle]->enabled) return nullptr;
@@ -101,7 +103,8 @@ void runTick() {
     std::lock_guard<std::mutex> lock(g.mutex);
     ops = g.operations;
   }
-  std::stable_sort(ops.begin(), ops.end(), [](const Operation& a, const Operation& b) { return a.priority > b.priority; });
+  std::stable_sort(ops.begin(), ops.end(),
+                   [](const Operation& a, const Operation& b) { return a.priority > b.priority; });
   g.tickStart = Clock::now();
   for (const Operation& op : ops) {
     {
@@ -208,34 +211,60 @@ void endFrameLocked(Device& d, HHD handle) {
   ++d.frames;
 }
 
+// The values of parameter pname on device d (at most 16) and their count; 0 for a parameter the fake lacks.
+int parameterValues(const Device& d, HDenum pname, double values[16]) {
+  const double* array = nullptr;
+  int n = 3;
+  if (pname == HD_CURRENT_TRANSFORM) {
+    array = d.frameTransform;
+    n = 16;
+  } else if (pname == HD_CURRENT_POSITION) {
+    array = d.frameTransform + 12;  // the translation column
+  } else if (pname == HD_CURRENT_VELOCITY) {
+    array = d.frameVelocity;
+  } else if (pname == HD_CURRENT_JOINT_ANGLES) {
+    array = d.frameJoints;
+  } else if (pname == HD_CURRENT_GIMBAL_ANGLES) {
+    array = d.frameGimbal;
+  } else if (pname == HD_CURRENT_FORCE) {
+    array = d.pendingForce;
+  } else if (pname == HD_LAST_FORCE) {
+    array = d.sentForce;
+  }
+  if (array) {
+    std::copy(array, array + n, values);
+    return n;
+  }
+  const struct {
+    HDenum name;
+    double value;
+  } scalars[] = {{HD_NOMINAL_MAX_FORCE, d.peakForce},
+                 {HD_NOMINAL_MAX_CONTINUOUS_FORCE, d.continuousForce},
+                 {HD_CURRENT_BUTTONS, static_cast<double>(d.frameButtons)},
+                 {HD_CALIBRATION_STYLE, static_cast<double>(d.calibrationStyles)},
+                 {HD_CURRENT_INKWELL_SWITCH, d.inInkwell ? 0.0 : 1.0},  // assumed: 0 = in the inkwell
+                 {HD_UPDATE_RATE, 1000.0}};
+  for (const auto& s : scalars) {
+    if (s.name == pname) {
+      values[0] = s.value;
+      return 1;
+    }
+  }
+  return 0;
+}
+
 template <typename T>
 void getValues(HDenum pname, T* out) {
   std::lock_guard<std::mutex> lock(g.mutex);
   Device* d = currentLocked();
+  double values[16];
+  const int n = d ? parameterValues(*d, pname, values) : 0;
   if (!d) {
     pushError(HD_BAD_HANDLE, g.current.load());
-    return;
+  } else if (n == 0) {
+    pushError(HD_INVALID_ENUM, g.current.load());
   }
-  auto put = [&](const double* values, int n) {
-    for (int i = 0; i < n; ++i) out[i] = static_cast<T>(values[i]);
-  };
-  const double position[3] = {d->frameTransform[12], d->frameTransform[13], d->frameTransform[14]};
-  switch (pname) {
-    case HD_CURRENT_TRANSFORM: put(d->frameTransform, 16); break;
-    case HD_CURRENT_POSITION: put(position, 3); break;
-    case HD_CURRENT_VELOCITY: put(d->frameVelocity, 3); break;
-    case HD_CURRENT_JOINT_ANGLES: put(d->frameJoints, 3); break;
-    case HD_CURRENT_GIMBAL_ANGLES: put(d->frameGimbal, 3); break;
-    case HD_CURRENT_FORCE: put(d->pendingForce, 3); break;
-    case HD_LAST_FORCE: put(d->sentForce, 3); break;
-    case HD_NOMINAL_MAX_FORCE: out[0] = static_cast<T>(d->peakForce); break;
-    case HD_NOMINAL_MAX_CONTINUOUS_FORCE: out[0] = static_cast<T>(d->continuousForce); break;
-    case HD_CURRENT_BUTTONS: out[0] = static_cast<T>(d->frameButtons); break;
-    case HD_CALIBRATION_STYLE: out[0] = static_cast<T>(d->calibrationStyles); break;
-    case HD_CURRENT_INKWELL_SWITCH: out[0] = static_cast<T>(d->inInkwell ? 0 : 1); break;  // assumed: 0 = in
-    case HD_UPDATE_RATE: out[0] = static_cast<T>(1000); break;
-    default: pushError(HD_INVALID_ENUM, g.current.load());
-  }
+  for (int i = 0; i < n; ++i) out[i] = static_cast<T>(values[i]);
 }
 
 // Runs f(device) under the lock, or reports HD_BAD_HANDLE for a handle that is not an open device.
@@ -309,25 +338,28 @@ HDErrorInfo HDAPIENTRY hdGetError() {
 }
 
 HDstring HDAPIENTRY hdGetErrorString(HDerror code) {
-  switch (code) {
-    case HD_SUCCESS: return "No error";
-    case HD_INVALID_ENUM: return "Invalid enumerant";
-    case HD_INVALID_VALUE: return "Invalid value";
-    case HD_INVALID_OPERATION: return "Invalid operation";
-    case HD_BAD_HANDLE: return "Invalid device handle";
-    case HD_WARM_MOTORS: return "Motors are overheating";
-    case HD_EXCEEDED_MAX_FORCE: return "Exceeded maximum force";
-    case HD_EXCEEDED_MAX_VELOCITY: return "Exceeded maximum velocity";
-    case HD_DEVICE_FAULT: return "Device fault";
-    case HD_DEVICE_ALREADY_INITIATED: return "Device already initiated";
-    case HD_COMM_ERROR: return "Communication error";
-    case HD_COMM_CONFIG_ERROR: return "Communication configuration error";
-    case HD_TIMER_ERROR: return "Timer error";
-    case HD_ILLEGAL_BEGIN: return "Illegal begin frame";
-    case HD_ILLEGAL_END: return "Illegal end frame";
-    case HD_SCHEDULER_FULL: return "Scheduler full";
-    default: return "Unknown error";
-  }
+  static const struct {
+    HDerror code;
+    const char* text;
+  } kTexts[] = {{HD_SUCCESS, "No error"},
+                {HD_INVALID_ENUM, "Invalid enumerant"},
+                {HD_INVALID_VALUE, "Invalid value"},
+                {HD_INVALID_OPERATION, "Invalid operation"},
+                {HD_BAD_HANDLE, "Invalid device handle"},
+                {HD_WARM_MOTORS, "Motors are overheating"},
+                {HD_EXCEEDED_MAX_FORCE, "Exceeded maximum force"},
+                {HD_EXCEEDED_MAX_VELOCITY, "Exceeded maximum velocity"},
+                {HD_DEVICE_FAULT, "Device fault"},
+                {HD_DEVICE_ALREADY_INITIATED, "Device already initiated"},
+                {HD_COMM_ERROR, "Communication error"},
+                {HD_COMM_CONFIG_ERROR, "Communication configuration error"},
+                {HD_TIMER_ERROR, "Timer error"},
+                {HD_ILLEGAL_BEGIN, "Illegal begin frame"},
+                {HD_ILLEGAL_END, "Illegal end frame"},
+                {HD_SCHEDULER_FULL, "Scheduler full"}};
+  for (const auto& t : kTexts)
+    if (t.code == code) return t.text;
+  return "Unknown error";
 }
 
 void HDAPIENTRY hdEnable(HDenum cap) {
@@ -359,12 +391,11 @@ void HDAPIENTRY hdGetDoublev(HDenum pname, HDdouble* params) { getValues(pname, 
 void HDAPIENTRY hdGetLongv(HDenum pname, HDlong* params) { getValues(pname, params); }
 
 HDstring HDAPIENTRY hdGetString(HDenum pname) {
-  switch (pname) {
-    case HD_DEVICE_MODEL_TYPE: return "Touch (fake libHD)";
-    case HD_DEVICE_VENDOR: return "clod_haptics test fake";
-    case HD_DEVICE_SERIAL_NUMBER: return "00000";
-    default: pushError(HD_INVALID_ENUM, g.current.load()); return nullptr;
-  }
+  if (pname == HD_DEVICE_MODEL_TYPE) return "Touch (fake libHD)";
+  if (pname == HD_DEVICE_VENDOR) return "clod_haptics test fake";
+  if (pname == HD_DEVICE_SERIAL_NUMBER) return "00000";
+  pushError(HD_INVALID_ENUM, g.current.load());
+  return nullptr;
 }
 
 void HDAPIENTRY hdSetDoublev(HDenum pname, const HDdouble* params) {
@@ -448,21 +479,21 @@ void HDAPIENTRY hdScheduleSynchronous(HDSchedulerCallback callback, void* data, 
   const HDSchedulerHandle handle = g.nextHandle++;
   g.operations.push_back(Operation{handle, callback, data, priority, true, false});
   g.doneCv.wait(lock, [&] {
-    auto it = std::find_if(g.operations.begin(), g.operations.end(),
-                           [&](const Operation& o) { return o.handle == handle; });
+    auto it =
+        std::find_if(g.operations.begin(), g.operations.end(), [&](const Operation& o) { return o.handle == handle; });
     return it == g.operations.end() || it->done;
   });
-  g.operations.erase(std::remove_if(g.operations.begin(), g.operations.end(),
-                                    [&](const Operation& o) { return o.handle == handle; }),
-                     g.operations.end());
+  g.operations.erase(
+      std::remove_if(g.operations.begin(), g.operations.end(), [&](const Operation& o) { return o.handle == handle; }),
+      g.operations.end());
 }
 
 void HDAPIENTRY hdUnschedule(HDSchedulerHandle handle) {
   std::lock_guard<std::mutex> lock(g.mutex);
   const auto before = g.operations.size();
-  g.operations.erase(std::remove_if(g.operations.begin(), g.operations.end(),
-                                    [&](const Operation& o) { return o.handle == handle; }),
-                     g.operations.end());
+  g.operations.erase(
+      std::remove_if(g.operations.begin(), g.operations.end(), [&](const Operation& o) { return o.handle == handle; }),
+      g.operations.end());
   if (g.operations.size() == before) pushError(HD_INVALID_OPERATION, g.current.load());
 }
 
@@ -491,8 +522,10 @@ HDboolean hduIsForceError(const HDErrorInfo* error) {
     case HD_WARM_MOTORS:
     case HD_EXCEEDED_MAX_FORCE:
     case HD_EXCEEDED_MAX_VELOCITY:
-    case HD_FORCE_ERROR: return HD_TRUE;
-    default: return HD_FALSE;
+    case HD_FORCE_ERROR:
+      return HD_TRUE;
+    default:
+      return HD_FALSE;
   }
 }
 
@@ -502,8 +535,10 @@ HDboolean hduIsSchedulerError(const HDErrorInfo* error) {
     case HD_COMM_CONFIG_ERROR:
     case HD_TIMER_ERROR:
     case HD_INVALID_PRIORITY:
-    case HD_SCHEDULER_FULL: return HD_TRUE;
-    default: return HD_FALSE;
+    case HD_SCHEDULER_FULL:
+      return HD_TRUE;
+    default:
+      return HD_FALSE;
   }
 }
 
@@ -553,7 +588,8 @@ void fakeHdSetCalibration(HHD h, HDenum status, int styles) {
 void fakeHdSetInkwell(HHD h, int in) {
   FAKE_HD_CONTROL(h, {
     d->inInkwell = in != 0;
-    if (d->inInkwell && d->calibration == HD_CALIBRATION_NEEDS_MANUAL_INPUT) d->calibration = HD_CALIBRATION_NEEDS_UPDATE;
+    if (d->inInkwell && d->calibration == HD_CALIBRATION_NEEDS_MANUAL_INPUT)
+      d->calibration = HD_CALIBRATION_NEEDS_UPDATE;
   });
 }
 unsigned long fakeHdCalibrationUpdates(HHD h) {

@@ -17,7 +17,8 @@
 extern "C" {
 #endif
 
-/** \brief The handle of an initialised device by its name ("" or NULL: the default device); HD_INVALID_HANDLE if none. */
+/** \brief The handle of an initialised device by its name ("" or NULL: the default device); HD_INVALID_HANDLE if none.
+ */
 HHD fakeHdFindDevice(const char* name);
 /** \brief Stylus transform, column-major 4x4 as HD_CURRENT_TRANSFORM, translation in millimetres. */
 void fakeHdSetTransform(HHD device, const double transform[16]);
