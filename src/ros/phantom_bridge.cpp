@@ -7,13 +7,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
 
 #include "clod_haptics/device/simulated_device.h"
 #include "clod_haptics/ros/pose_msg.h"
-#ifdef CLOD_WITH_OPENHAPTICS
-#include "clod_haptics/device/openhaptics_device.h"
-#endif
 
 namespace clod_haptics {
 namespace device {
@@ -25,6 +23,8 @@ double steadyNow() {
 }
 
 const char* kJointNames[6] = {"waist", "shoulder", "elbow", "yaw", "pitch", "roll"};
+
+double wallNow() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
 
 Eigen::Vector3d readVector(const ros::NodeHandle& pnh, const std::string& key, const Eigen::Vector3d& fallback) {
   std::vector<double> values;
@@ -46,29 +46,43 @@ PhantomBridgeParams PhantomBridge::readParameters(const ros::NodeHandle& pnh) {
   pnh.param("max_force", p.safety.maxForce, p.safety.maxForce);
   pnh.param("max_force_rate", p.safety.maxForceRate, p.safety.maxForceRate);
   pnh.param("force_timeout", p.safety.staleTimeout, p.safety.staleTimeout);
+  pnh.param("device_timeout", p.deviceTimeout, p.deviceTimeout);
   if (p.name.empty()) throw std::invalid_argument("~omni_name must not be empty");
   if (!std::isfinite(p.rate) || p.rate < 1.0 || p.rate > 10000.0) {
     throw std::invalid_argument("~rate must be between 1 and 10000 Hz, got " + std::to_string(p.rate));
   }
+  if (!std::isfinite(p.deviceTimeout) || p.deviceTimeout <= 0.0) {
+    throw std::invalid_argument("~device_timeout must be a positive number of seconds, got " +
+                                std::to_string(p.deviceTimeout));
+  }
   validate(p.safety);
-  if (p.safety.maxForce > kTouchPeakForce) {
-    throw std::invalid_argument("~max_force " + std::to_string(p.safety.maxForce) +
-                                " N exceeds the Geomagic Touch's peak force (3.3 N)");
-  }
-  if (p.safety.maxForce > kTouchContinuousForce) {
-    ROS_WARN("~max_force %.2f N is above the Geomagic Touch's continuous rating (%.2f N): only for short contacts",
-             p.safety.maxForce, kTouchContinuousForce);
-  }
   return p;
 }
 
-std::unique_ptr<HapticDevice> PhantomBridge::createDevice(const ros::NodeHandle& pnh) {
+OpenHapticsOptions PhantomBridge::readOpenHapticsOptions(const ros::NodeHandle& pnh) {
+  OpenHapticsOptions o;
+  pnh.param("device_name", o.deviceName, o.deviceName);
+  pnh.param("damping", o.damping, o.damping);
+  pnh.param("max_force", o.maxForce, o.maxForce);
+  pnh.param("force_timeout", o.forceTimeout, o.forceTimeout);
+  std::string convention = "omni_common";
+  pnh.param("joint_convention", convention, convention);
+  o.joints = parseJointConvention(convention);
+  o.tipOffset = readVector(pnh, "tip_offset", o.tipOffset);
+  if (!std::isfinite(o.damping) || o.damping < 0.0 || o.damping > 10.0) {
+    throw std::invalid_argument("~damping must be between 0 and 10 N s/m (the drivers use 1.0), got " +
+                                std::to_string(o.damping));
+  }
+  if (!o.tipOffset.allFinite() || o.tipOffset.norm() > 0.2) {
+    throw std::invalid_argument("~tip_offset must be finite and shorter than 0.2 m");
+  }
+  return o;
+}
+
+std::unique_ptr<HapticDevice> PhantomBridge::createDevice(const ros::NodeHandle& pnh,
+                                                          const OpenHapticsFactory& openhaptics) {
   std::string backend;
-#ifdef CLOD_WITH_OPENHAPTICS
-  pnh.param("backend", backend, std::string("openhaptics"));
-#else
-  pnh.param("backend", backend, std::string("simulated"));
-#endif
+  pnh.param("backend", backend, std::string(openhaptics ? "openhaptics" : "simulated"));
   if (backend == "simulated") {
     std::string script;
     bool loop = true;
@@ -88,18 +102,19 @@ std::unique_ptr<HapticDevice> PhantomBridge::createDevice(const ros::NodeHandle&
     return std::make_unique<SimulatedDevice>(SimulatedDevice::circleScript(centre, radius, period), loop);
   }
   if (backend == "openhaptics") {
-#ifdef CLOD_WITH_OPENHAPTICS
-    std::string deviceName;
-    pnh.param("device_name", deviceName, std::string());
-    return std::make_unique<OpenHapticsDevice>(deviceName);
-#else
+    if (openhaptics) {
+      try {
+        return openhaptics(readOpenHapticsOptions(pnh));
+      } catch (const std::invalid_argument& e) {
+        throw DeviceError(e.what());
+      }
+    }
     throw DeviceError(
         "~backend 'openhaptics': this build has no OpenHaptics support (the HD headers and library were not "
         "found at configure time). Install the OpenHaptics SDK and rebuild with -DCLOD_WITH_OPENHAPTICS=ON "
         "(-DOPENHAPTICS_ROOT=<dir> if it is not under /usr or /opt/OpenHaptics); or run the simulated device: "
         "roslaunch clod_haptics clod_haptics.launch device:=phantom backend:=simulated, or "
         "CLOD_PHANTOM_BACKEND=simulated roslaunch clod_haptics clod_haptics.launch device:=phantom");
-#endif
   }
   throw DeviceError("~backend must be 'simulated' or 'openhaptics', got '" + backend + "'");
 }
@@ -125,39 +140,99 @@ PhantomBridge::~PhantomBridge() { stop(); }
 void PhantomBridge::start() {
   if (running_) return;
   device_->start();
+  deviceStarted_ = true;
+  try {
+    checkRatings();
+  } catch (...) {
+    deviceStarted_ = false;
+    device_->stop();
+    throw;
+  }
+  {
+    DeviceState ignored;
+    device_->read(ignored);
+  }
+  if (device_->condition() == DeviceCondition::Calibrating) {
+    ROS_WARN("phantom_bridge: %s", device_->conditionText().c_str());
+  }
   running_ = true;
   startWall_ = steadyNow();
+  lastStateAt_ = startWall_;
   servo_ = std::thread(&PhantomBridge::servoLoop, this);
 }
 
+void PhantomBridge::checkRatings() {
+  const ForceRatings r = device_->ratings();
+  const double maxForce = params_.safety.maxForce;
+  if (maxForce > r.peak) {
+    throw DeviceError("~max_force " + std::to_string(maxForce) + " N exceeds the device's peak force (" +
+                      std::to_string(r.peak) + " N, HD_NOMINAL_MAX_FORCE for OpenHaptics)");
+  }
+  if (maxForce > r.continuous) {
+    ROS_WARN("~max_force %.2f N is above the device's continuous rating (%.2f N): only for short contacts", maxForce,
+             r.continuous);
+  }
+}
+
+std::string PhantomBridge::failure() const {
+  std::lock_guard<std::mutex> lock(failureMutex_);
+  return failure_;
+}
+
+void PhantomBridge::fail(const std::string& reason) {
+  ROS_FATAL("phantom_bridge: %s; stopping (exit code 1, for the launch file's respawn or required)", reason.c_str());
+  {
+    std::lock_guard<std::mutex> lock(failureMutex_);
+    failure_ = reason;
+  }
+  running_ = false;
+  ros::requestShutdown();
+}
+
 void PhantomBridge::stop() {
-  const bool wasRunning = running_.exchange(false);
+  running_ = false;
   if (servo_.joinable()) servo_.join();
-  if (wasRunning) {
-    device_->commandForce(Eigen::Vector3d::Zero());
-    device_->stop();
-    const double elapsed = steadyNow() - startWall_;
-    const ForceSafetyCounters& c = safety_.counters();
-    char summary[256];
-    std::snprintf(summary, sizeof(summary),
-                  "phantom_bridge: %llu ticks in %.1f s (%.0f Hz); forces clamped %llu, non-finite %llu, stale %llu, "
-                  "rate-limited %llu",
-                  static_cast<unsigned long long>(ticks_.load()), elapsed, elapsed > 0 ? ticks_ / elapsed : 0.0,
-                  static_cast<unsigned long long>(c.clamped), static_cast<unsigned long long>(c.nonFinite),
-                  static_cast<unsigned long long>(c.stale), static_cast<unsigned long long>(c.rateLimited));
-    // After shutdown (Ctrl-C) rosconsole prints nothing: the summary goes to stdout then.
-    if (ros::ok()) {
-      ROS_INFO("%s", summary);
-    } else {
-      std::printf("%s\n", summary);
-      std::fflush(stdout);
-    }
+  if (!deviceStarted_) return;
+  deviceStarted_ = false;
+  device_->commandForce(Eigen::Vector3d::Zero());
+  device_->stop();
+  const double elapsed = steadyNow() - startWall_;
+  const ForceSafetyCounters& c = safety_.counters();
+  char summary[1024];
+  int n = std::snprintf(summary, sizeof(summary),
+                        "phantom_bridge: %llu ticks in %.1f s (%.0f Hz); forces clamped %llu, non-finite %llu, "
+                        "stale %llu, rate-limited %llu",
+                        static_cast<unsigned long long>(ticks_.load()), elapsed, elapsed > 0 ? ticks_ / elapsed : 0.0,
+                        static_cast<unsigned long long>(c.clamped), static_cast<unsigned long long>(c.nonFinite),
+                        static_cast<unsigned long long>(c.stale), static_cast<unsigned long long>(c.rateLimited));
+  const LatencyHistogram* loop = device_->forceLoopLatency();
+  if (loop && loop->count() > 0 && n > 0 && static_cast<std::size_t>(n) < sizeof(summary)) {
+    std::snprintf(summary + n, sizeof(summary) - static_cast<std::size_t>(n),
+                  "; force loop (pose read in the servo loop -> its force back there) over %llu forces: "
+                  "p50 %.0f us, p99 %.0f us, p99.9 %.0f us, max %.0f us",
+                  static_cast<unsigned long long>(loop->count()), loop->percentileUs(50), loop->percentileUs(99),
+                  loop->percentileUs(99.9), loop->maxUs());
+    n = static_cast<int>(std::strlen(summary));
+    std::snprintf(summary + n, sizeof(summary) - static_cast<std::size_t>(n),
+                  "; device read -> force handed to the device p50 %.0f us, p99 %.0f us, max %.0f us; of which "
+                  "device read -> pose published p50 %.0f us, p99 %.0f us, force received -> handed over p50 %.0f "
+                  "us, p99 %.0f us",
+                  handOver_.percentileUs(50), handOver_.percentileUs(99), handOver_.maxUs(), poseWait_.percentileUs(50),
+                  poseWait_.percentileUs(99), forceWait_.percentileUs(50), forceWait_.percentileUs(99));
+  }
+  // After shutdown (Ctrl-C) rosconsole prints nothing: the summary goes to stdout then.
+  if (ros::ok()) {
+    ROS_INFO("%s", summary);
+  } else {
+    std::printf("%s\n", summary);
+    std::fflush(stdout);
   }
 }
 
 void PhantomBridge::onForce(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
   const double now = steadyNow();
   std::lock_guard<std::mutex> lock(commandMutex_);
+  commandStamp_ = msg->header.stamp.toSec();
   command_.force = Eigen::Vector3d(msg->wrench.force.x, msg->wrench.force.y, msg->wrench.force.z);
   command_.receivedAt = now;
   command_.valid = true;
@@ -174,49 +249,89 @@ void PhantomBridge::servoLoop() {
     if (now > next + 10 * period) next = now;  // fell far behind (machine busy): do not burst to catch up
     std::this_thread::sleep_until(next);
   }
+  // A thread that stops on its own (the device failed) leaves the device at zero force.
+  device_->commandForce(Eigen::Vector3d::Zero());
+}
+
+void PhantomBridge::publishState(const DeviceState& state) {
+  // The moment the device was read, when the device knows it (OpenHaptics' servo frame): the detector copies
+  // it into the force, which the device then measures its force loop with.
+  const ros::Time stamp = (state.stamp > 0.0 && !ros::Time::isSimTime()) ? ros::Time(state.stamp) : ros::Time::now();
+  geometry_msgs::PoseStamped pose;
+  // Consecutive numbers, as bag_replay gives them: the detector counts a gap as poses lost on the way.
+  pose.header.seq = static_cast<std::uint32_t>(++posesPublished_);
+  pose.header.stamp = stamp;
+  pose.header.frame_id = params_.frameId;
+  toPoseMsg(state.position, state.orientation, pose.pose);
+  posePub_.publish(pose);
+
+  sensor_msgs::JointState joints;
+  joints.header.stamp = stamp;
+  joints.name.assign(kJointNames, kJointNames + 6);
+  joints.position.assign(state.joints.begin(), state.joints.end());
+  jointPub_.publish(joints);
+
+  if (!buttonsKnown_ || state.buttons != lastButtons_) {
+    sensor_msgs::Joy button;
+    button.header.stamp = stamp;
+    button.header.frame_id = params_.frameId;
+    button.buttons = {(state.buttons & kGreyButton) ? 1 : 0, (state.buttons & kWhiteButton) ? 1 : 0};
+    buttonPub_.publish(button);
+    buttonsKnown_ = true;
+    lastButtons_ = state.buttons;
+  }
+}
+
+void PhantomBridge::noState(double now) {
+  const DeviceCondition condition = device_->condition();
+  if (condition == DeviceCondition::Failed) {
+    fail(device_->conditionText());
+    return;
+  }
+  if (condition == DeviceCondition::Calibrating) {
+    lastStateAt_ = now;  // waiting for the user, not a fault
+    ROS_WARN_THROTTLE(5.0, "phantom_bridge: %s", device_->conditionText().c_str());
+    return;
+  }
+  const std::string text = device_->conditionText();
+  if (now - lastStateAt_ > params_.deviceTimeout) {
+    char what[96];
+    std::snprintf(what, sizeof what, "no state from the device for %.1f s (~device_timeout): ", now - lastStateAt_);
+    fail(what + (text.empty() ? device_->name() : text));
+    return;
+  }
+  if (condition != DeviceCondition::NotStarted) {  // the first servo frames: only the timeout above counts
+    ROS_WARN_THROTTLE(1.0, "phantom_bridge: no state: %s", text.empty() ? device_->name().c_str() : text.c_str());
+  }
 }
 
 void PhantomBridge::tick(double now) {
   ++ticks_;
   DeviceState state;
-  const bool haveState = device_->read(state);
-  const ros::Time stamp = ros::Time::now();
-  if (haveState) {
-    geometry_msgs::PoseStamped pose;
-    // Consecutive numbers, as bag_replay gives them: the detector counts a gap as poses lost on the way.
-    pose.header.seq = static_cast<std::uint32_t>(++posesPublished_);
-    pose.header.stamp = stamp;
-    pose.header.frame_id = params_.frameId;
-    toPoseMsg(state.position, state.orientation, pose.pose);
-    posePub_.publish(pose);
-
-    sensor_msgs::JointState joints;
-    joints.header.stamp = stamp;
-    joints.name.assign(kJointNames, kJointNames + 6);
-    joints.position.assign(state.joints.begin(), state.joints.end());
-    jointPub_.publish(joints);
-
-    if (!buttonsKnown_ || state.buttons != lastButtons_) {
-      sensor_msgs::Joy button;
-      button.header.stamp = stamp;
-      button.header.frame_id = params_.frameId;
-      button.buttons = {(state.buttons & kGreyButton) ? 1 : 0, (state.buttons & kWhiteButton) ? 1 : 0};
-      buttonPub_.publish(button);
-      buttonsKnown_ = true;
-      lastButtons_ = state.buttons;
-    }
+  if (device_->read(state)) {
+    lastStateAt_ = now;
+    publishState(state);
+    if (state.stamp > 0.0) poseWait_.record(static_cast<std::int64_t>((steadyNow() - state.time) * 1e9));
   } else {
-    ROS_WARN_THROTTLE(1.0, "phantom_bridge: no state from device %s", device_->name().c_str());
+    noState(now);
+    if (!running_) return;
   }
 
   ForceCommand command;
+  double commandStamp = 0.0;
   {
     std::lock_guard<std::mutex> lock(commandMutex_);
     command = command_;
+    commandStamp = commandStamp_;
   }
   ForceStatus status;
   const Eigen::Vector3d force = safety_.update(command, now, &status);
-  device_->commandForce(force);
+  device_->commandForceFor(force, ros::Time::isSimTime() ? 0.0 : commandStamp);
+  if (command.valid && commandStamp != lastHandedStamp_) {
+    forceWait_.record(static_cast<std::int64_t>((steadyNow() - command.receivedAt) * 1e9));
+    if (commandStamp > 0.0) handOver_.record(static_cast<std::int64_t>((wallNow() - commandStamp) * 1e9));
+    lastHandedStamp_ = commandStamp;
+  }
 
   if (status == ForceStatus::NonFinite) {
     ROS_WARN_THROTTLE(1.0, "phantom_bridge: non-finite force command (%g, %g, %g): rendering zero force",
@@ -232,7 +347,7 @@ void PhantomBridge::tick(double now) {
 
   if (renderedPub_.getNumSubscribers() > 0) {
     geometry_msgs::WrenchStamped rendered;
-    rendered.header.stamp = stamp;
+    rendered.header.stamp = ros::Time::now();
     rendered.header.frame_id = params_.frameId;
     rendered.wrench.force.x = force.x();
     rendered.wrench.force.y = force.y();

@@ -103,6 +103,31 @@ TEST(DeviceBadInputs, PhantomBridgeRejectsAnUnknownBackend) {
   expectCleanFailure(run(kBridge + " __name:=pb_backend _backend:=falcon"), "falcon");
 }
 
+// The bridge on the fake libHD (phantom_bridge_fake_hd): a device that fails while running stops the bridge
+// with exit code 1 and the HD error text, so the launch file's respawn (or required) takes over.
+const std::string kFakeBridge = CLOD_PHANTOM_BRIDGE_FAKE_HD_PATH;
+
+TEST(DeviceBadInputs, PhantomBridgeExitsWhenTheDeviceIsUnplugged) {
+  expectCleanFailure(run("env CLOD_FAKE_HD_UNPLUG_AFTER_MS=300 " + kFakeBridge + " __name:=pb_unplug"),
+                     "Communication error");
+}
+
+TEST(DeviceBadInputs, PhantomBridgeExitsWhenEveryFrameHasAnError) {
+  // HD_DEVICE_FAULT (0x300) in every frame: no state for ~device_timeout.
+  expectCleanFailure(
+      run("env CLOD_FAKE_HD_ERROR=0x300:persistent " + kFakeBridge + " __name:=pb_fault _device_timeout:=0.5"),
+      "Device fault");
+}
+
+TEST(DeviceBadInputs, PhantomBridgeRefusesAMaxForceAboveTheDevicesPeak) {
+  expectCleanFailure(run("env CLOD_FAKE_HD_NOMINAL_FORCES=0.5,0.3 " + kFakeBridge + " __name:=pb_peak _max_force:=0.6"),
+                     "peak");
+}
+
+TEST(DeviceBadInputs, PhantomBridgeWithAnUnknownDeviceNameSaysSo) {
+  expectCleanFailure(run(kFakeBridge + " __name:=pb_name \"_device_name:=missing arm\""), "missing arm");
+}
+
 #ifndef CLOD_WITH_OPENHAPTICS
 TEST(DeviceBadInputs, PhantomBridgeWithoutOpenHapticsSaysHowToGetIt) {
   expectCleanFailure(run(kBridge + " __name:=pb_oh _backend:=openhaptics"), "CLOD_WITH_OPENHAPTICS");

@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "clod_haptics/core/latency_histogram.h"
+
 namespace clod_haptics {
 namespace device {
 
@@ -29,11 +31,28 @@ enum DeviceButton : std::uint32_t {
  */
 struct DeviceState {
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
-  double time = 0.0;                                                ///< device clock, seconds
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();               ///< stylus tip, metres
+  double time = 0.0;   ///< the device's clock when read, seconds (OpenHaptics: steady clock; simulated: script time)
+  double stamp = 0.0;  ///< the same moment on the wall clock (system_clock, seconds since 1970); 0: unknown
+  /** \brief The point the device reports, metres: for OpenHaptics the gimbal centre plus the tip offset. */
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  ///< stylus orientation
   std::array<double, 6> joints{};                                   ///< joint angles, radians
   std::uint32_t buttons = 0;                                        ///< DeviceButton bits
+};
+
+/** \brief Why read() gives no state, worst last. */
+enum class DeviceCondition : std::uint8_t {
+  Ok,           ///< read() gives states
+  NotStarted,   ///< not started, or no servo frame yet
+  Calibrating,  ///< waiting for calibration (the stylus in the inkwell, say): no state, zero force
+  FrameError,   ///< the last servo frame reported an error: its state is withheld
+  Failed        ///< the servo loop stopped for good (communication lost, device unplugged)
+};
+
+/** \brief A device's force ratings, newtons. The defaults are the Geomagic Touch's. */
+struct ForceRatings {
+  double peak = 3.3;         ///< nominal maximum force (HD_NOMINAL_MAX_FORCE)
+  double continuous = 0.88;  ///< nominal maximum continuous force (HD_NOMINAL_MAX_CONTINUOUS_FORCE)
 };
 
 /**
@@ -41,8 +60,9 @@ struct DeviceState {
  * (clamp, rate limit, NaN and stale handling) only talks to this interface, so it is tested with
  * SimulatedDevice and runs unchanged on OpenHapticsDevice.
  *
- * read() and commandForce() are called from the bridge's servo thread only; implementations that
- * run their own servo loop (OpenHaptics' scheduler) hand data across with their own locking.
+ * read(), commandForce(), commandForceFor(), condition() and conditionText() are called from one thread,
+ * the bridge's; implementations that run their own servo loop (OpenHaptics' scheduler) hand data across
+ * without blocking that loop.
  */
 class HapticDevice {
  public:
@@ -57,6 +77,26 @@ class HapticDevice {
   virtual void commandForce(const Eigen::Vector3d& force) = 0;
   /** \brief A short name for logs ("simulated", "openhaptics:Default Device"). */
   virtual std::string name() const = 0;
+
+  /**
+   * \brief commandForce() for the answer to the pose stamped poseStamp (wall clock seconds, DeviceState::stamp
+   * of that pose; 0 when unknown), so a device can measure its force loop's latency.
+   */
+  virtual void commandForceFor(const Eigen::Vector3d& force, double poseStamp) {
+    (void)poseStamp;
+    commandForce(force);
+  }
+  /** \brief The device's condition after the last read() (bridge thread). */
+  virtual DeviceCondition condition() const { return DeviceCondition::Ok; }
+  /** \brief What condition() means for the user, with the device's error text; empty when Ok. */
+  virtual std::string conditionText() const { return {}; }
+  /** \brief The force ratings, read from the device where it reports them; valid after start(). */
+  virtual ForceRatings ratings() const { return {}; }
+  /**
+   * \brief Time from a pose leaving the device's servo loop to the force answering it reaching the servo
+   * loop (see commandForceFor()); null when the device does not measure it.
+   */
+  virtual const LatencyHistogram* forceLoopLatency() const { return nullptr; }
 };
 
 }  // namespace device

@@ -4,6 +4,7 @@
 #include <ros/ros.h>
 
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -11,13 +12,10 @@
 
 #include "clod_haptics/device/force_safety.h"
 #include "clod_haptics/device/haptic_device.h"
+#include "clod_haptics/device/openhaptics_device.h"
 
 namespace clod_haptics {
 namespace device {
-
-/** \brief The Geomagic Touch's force ratings, newtons (the bridge refuses a max_force above the peak). */
-constexpr double kTouchContinuousForce = 0.88;
-constexpr double kTouchPeakForce = 3.3;
 
 /** \brief Everything the bridge reads from the parameter server. */
 struct PhantomBridgeParams {
@@ -25,7 +23,12 @@ struct PhantomBridgeParams {
   std::string frameId = "world";  ///< frame of the published pose
   double rate = 1000.0;           ///< servo and publish rate, Hz
   ForceSafetyParams safety;       ///< clamp, rate limit, stale timeout
+  /** \brief Seconds without a state (device errors, no frames; calibration excepted) before the bridge gives up. */
+  double deviceTimeout = 1.0;
 };
+
+/** \brief Makes the OpenHaptics device; empty in a build without OpenHaptics. */
+using OpenHapticsFactory = std::function<std::unique_ptr<HapticDevice>(const OpenHapticsOptions&)>;
 
 /**
  * \brief ROS glue between a HapticDevice and the topics the Phantom / Geomagic Touch ROS drivers
@@ -42,6 +45,11 @@ struct PhantomBridgeParams {
  * A servo thread at `rate` reads the device, publishes, and renders the latest force command
  * through ForceSafety: clamped to max_force, slew-limited to max_force_rate, zero (with a
  * throttled warning) for a NaN/Inf command or one older than force_timeout.
+ *
+ * The pose is stamped with the moment the device was read (DeviceState::stamp), and the force that answers
+ * it is handed to the device with that stamp, so the device can measure the force loop. A device that
+ * fails (condition() Failed, or no state for ~device_timeout outside calibration) stops the bridge:
+ * failure() gives the reason and the node exits non-zero, for roslaunch's respawn or required.
  */
 class PhantomBridge {
  public:
@@ -57,10 +65,16 @@ class PhantomBridge {
   static PhantomBridgeParams readParameters(const ros::NodeHandle& pnh);
   /**
    * \brief The device named by ~backend: "simulated" (scripted motion from ~sim/script CSV or a
-   * circle ~sim/centre, ~sim/radius, ~sim/period) or "openhaptics" (~device_name, only when built
-   * with CLOD_WITH_OPENHAPTICS). \throws DeviceError naming the problem.
+   * circle ~sim/centre, ~sim/radius, ~sim/period) or "openhaptics" (readOpenHapticsOptions(), made by
+   * openhaptics; the default backend when openhaptics is set). \throws DeviceError naming the problem.
    */
-  static std::unique_ptr<HapticDevice> createDevice(const ros::NodeHandle& pnh);
+  static std::unique_ptr<HapticDevice> createDevice(const ros::NodeHandle& pnh,
+                                                    const OpenHapticsFactory& openhaptics = {});
+  /**
+   * \brief ~device_name, ~damping (N s/m), ~joint_convention, ~tip_offset (m, stylus frame), ~max_force and
+   * ~force_timeout for the OpenHaptics backend. \throws std::invalid_argument for bad values.
+   */
+  static OpenHapticsOptions readOpenHapticsOptions(const ros::NodeHandle& pnh);
 
   /** \brief Starts the device and the servo thread. \throws DeviceError when the device does not start. */
   void start();
@@ -70,11 +84,17 @@ class PhantomBridge {
   const PhantomBridgeParams& params() const { return params_; }
   /** \brief Servo ticks run so far. */
   std::uint64_t ticks() const { return ticks_; }
+  /** \brief Why the bridge stopped on its own (device failure); empty while it runs or after a normal stop. */
+  std::string failure() const;
 
  private:
   void servoLoop();
   void onForce(const geometry_msgs::WrenchStamped::ConstPtr& msg);
   void tick(double now);
+  void publishState(const DeviceState& state);
+  void noState(double now);
+  void fail(const std::string& reason);
+  void checkRatings();
 
   ros::NodeHandle nh_;
   ros::NodeHandle pnh_;
@@ -89,16 +109,28 @@ class PhantomBridge {
   ros::Subscriber forceSub_;
 
   std::mutex commandMutex_;
-  ForceCommand command_;  // guarded by commandMutex_
+  ForceCommand command_;       // guarded by commandMutex_
+  double commandStamp_ = 0.0;  // guarded by commandMutex_: header.stamp of the command (the pose it answers)
 
   std::thread servo_;
   std::atomic<bool> running_{false};
+  bool deviceStarted_ = false;
   std::atomic<std::uint64_t> ticks_{0};
   std::uint64_t posesPublished_ = 0;  // tick thread only: header.seq of the poses
   bool buttonsKnown_ = false;
   std::uint32_t lastButtons_ = 0;
   ForceStatus lastStatus_ = ForceStatus::NoCommand;
   double startWall_ = 0.0;
+  double lastStateAt_ = 0.0;  // tick thread: when read() last gave a state (or the start)
+  // Where the force loop's time goes (devices that time their states, OpenHaptics): from the device read to
+  // the pose's publication, and from a force's arrival to its hand-over to the device. Tick thread.
+  // And from the device read to the force's hand-over (the loop without the servo callback's next tick).
+  LatencyHistogram poseWait_;
+  LatencyHistogram forceWait_;
+  LatencyHistogram handOver_;
+  double lastHandedStamp_ = 0.0;
+  mutable std::mutex failureMutex_;
+  std::string failure_;  // guarded by failureMutex_
 };
 
 }  // namespace device
