@@ -115,6 +115,8 @@ class ClodDetector {
   double spheresReachBeyondBounds() const noexcept { return reachBeyondBox_; }
   /** \brief The largest pointer radius the grid serves (0 without a grid): larger radii take the hierarchy. */
   double gridRadius() const noexcept { return grid_.empty() ? 0.0 : grid_.radius(); }
+  /** \brief The grid of FastLevel::Grid (empty otherwise), for queries that walk its cells (SweptSphereQuery). */
+  const CellGrid& grid() const noexcept { return grid_; }
   /**
    * \brief A number unique to this detector within the process (a counter stamped at construction,
    * never reused, never 0): the identity a QueryCache keeps across level swaps.
