@@ -57,6 +57,8 @@ inline double faceEntry(const Vec3& v0, const Vec3& v1, const Vec3& v2, const Ve
     t = (s0 - Rn) / -sd;
   } else if (s0 < -Rn && sd > 0.0) {
     t = (-s0 - Rn) / sd;
+  } else if (std::abs(s0) <= Rn && s0 * sd < 0.0) {
+    t = 0.0;  // within R of the plane by rounding only (the caller saw the centre farther): touching now
   } else {
     return kNever;
   }

@@ -150,6 +150,26 @@ TEST(SweptSphereTriangle, StartInContactAndZeroLength) {
   EXPECT_TRUE(sweptSphereTriangle(Vec3(0.2, 0.2, 0.0), Vec3(0, 0, 0.1), R, v0, v1, v2, toi, start));
 }
 
+// Sweeps starting exactly at the test radius from a face (where a proxy rests) and moving into it: the
+// distance and the plane offset round independently there, and neither may let the sweep through.
+TEST(SweptSphereTriangle, StartOnTheContactShellMovingIn) {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), w(0.05, 0.9);
+  int missed = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const Vec3 v0(u(rng), u(rng), u(rng)), v1(u(rng), u(rng), u(rng)), v2(u(rng), u(rng), u(rng));
+    const Vec3 n = (v1 - v0).cross(v2 - v0).normalized();
+    const double b1 = w(rng), b2 = w(rng) * (1.0 - b1);
+    const double r = 0.01 + 0.1 * w(rng), R = sweptRadiusMargin(r, 2.0);
+    const Vec3 a = v0 + b1 * (v1 - v0) + b2 * (v2 - v0) + n * R;
+    const Vec3 d = (-n + 0.3 * randomUnit(rng)) * 0.01 * r;
+    double toi;
+    bool start;
+    if (d.dot(n) < 0.0 && !sweptSphereTriangle(a, d, R, v0, v1, v2, toi, start)) ++missed;
+  }
+  EXPECT_EQ(missed, 0);
+}
+
 // A plate of two triangles at z = 0: the answer's fields from the definition.
 TEST(SweptSphereQuery, AnswerFieldsOnAPlate) {
   auto mesh = std::make_shared<const TriangleMesh>(
