@@ -73,6 +73,17 @@ std::vector<Vec3> path(const Vec3& from, const Vec3& to, double speed, int hold 
   return out;
 }
 
+// The shipped pointer and stiffness with the given friction and clamp.
+ProxyParameters stylus(double muStatic = 0.0, double muDynamic = 0.0, double maxForce = 0.0) {
+  ProxyParameters params;
+  params.radius = kRadius;
+  params.stiffness = kStiffness;
+  params.muStatic = muStatic;
+  params.muDynamic = muDynamic;
+  params.maxForce = maxForce;
+  return params;
+}
+
 struct Trace {
   std::vector<Vec3> device, force, proxy;
 };
@@ -244,12 +255,7 @@ TEST(HapticRenderer, NoBuzzOverAConvexEdgeAndVertex) {
 
 TEST(HapticRenderer, FrictionConeStaticThenDynamic) {
   const SweptScene scene = sceneOf(box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.0)));
-  ProxyParameters params;
-  params.radius = kRadius;
-  params.stiffness = kStiffness;
-  params.muStatic = 0.5;
-  params.muDynamic = 0.3;
-  HapticRenderer renderer(params);
+  HapticRenderer renderer(stylus(0.5, 0.3));
   ProxyTick tick;
   const double depth = 0.001;  // device 1 mm below the proxy's rest height: normal force 0.4 N
   for (const Vec3& d : path(Vec3(0, 0, 0.01), Vec3(0, 0, kRadius - depth), 0.05)) renderer.update(scene, d, kDt, tick);
@@ -336,10 +342,7 @@ TEST(HapticRenderer, AllocatesNothingPerTick) {
 
 TEST(HapticRenderer, ClampDampingAndBadInput) {
   const SweptScene scene = sceneOf(box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.0)));
-  ProxyParameters params;
-  params.radius = kRadius;
-  params.stiffness = kStiffness;
-  params.maxForce = 1.0;
+  ProxyParameters params = stylus(0.0, 0.0, 1.0);
   HapticRenderer renderer(params);
   ProxyTick tick;
   for (const Vec3& d : path(Vec3(0, 0, 0.01), Vec3(0, 0, -0.01), 0.05)) renderer.update(scene, d, kDt, tick);
