@@ -1,6 +1,5 @@
 #include "clod_haptics/core/haptic_renderer.h"
 
-#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -34,39 +33,52 @@ struct HapticRenderer::Planes {
 namespace {
 
 // The point nearest target on the planes of mask (n_i . (x - p) = skin for i in mask), or false when they
-// do not meet in one such point (parallel normals).
+// do not meet in one such point (parallel normals): x = target - sum_j lambda_j n_j, G lambda = c with G the
+// Gram matrix of the active normals, solved in closed form (at most 3 x 3, by Cramer's rule).
 bool projectOnto(const Vec3& target, const Vec3& p, const Vec3* n, unsigned mask, double skin, Vec3& x) {
-  int idx[kMaxPlanes], k = 0;
+  const Vec3* m[kMaxPlanes];
+  int k = 0;
   for (int i = 0; i < kMaxPlanes; ++i)
-    if (mask & (1u << i)) idx[k++] = i;
-  // x = target - sum_j lambda_j n_j with G lambda = c, G the Gram matrix of the active normals.
-  Eigen::Matrix3d G = Eigen::Matrix3d::Identity();
-  Vec3 c = Vec3::Zero();
-  for (int i = 0; i < k; ++i) {
-    c[i] = n[idx[i]].dot(target - p) - skin;
-    for (int j = 0; j < k; ++j) G(i, j) = n[idx[i]].dot(n[idx[j]]);
-  }
-  const double det = G.determinant();
-  if (!(std::abs(det) > 1e-12)) return false;
-  const Vec3 lambda = G.inverse() * c;
+    if (mask & (1u << i)) m[k++] = &n[i];
   x = target;
-  for (int i = 0; i < k; ++i) x -= lambda[i] * n[idx[i]];
+  if (k == 0) return true;
+  double c[kMaxPlanes];
+  for (int i = 0; i < k; ++i) c[i] = m[i]->dot(target - p) - skin;
+  if (k == 1) {
+    x -= c[0] * *m[0];  // unit normals: G = 1
+    return true;
+  }
+  if (k == 2) {
+    const double g = m[0]->dot(*m[1]), det = 1.0 - g * g;
+    if (!(det > 1e-12)) return false;
+    x -= ((c[0] - g * c[1]) / det) * *m[0] + ((c[1] - g * c[0]) / det) * *m[1];
+    return true;
+  }
+  // Three planes: their one common point, solved directly: x with m_i . (x - p) = skin.
+  const Vec3 a = m[1]->cross(*m[2]), b = m[2]->cross(*m[0]), e = m[0]->cross(*m[1]);
+  const double det = m[0]->dot(a);
+  if (!(std::abs(det) > 1e-12)) return false;
+  x = p + (skin * (a + b + e)) / det;
   return x.allFinite();
 }
 
-// The point nearest target that keeps at least skin above every plane through p: the projection onto the
-// subset of planes active at the optimum, found by trying every subset (at most eight) and keeping the
-// nearest feasible answer. p itself when none is feasible (degenerate normals).
+// The point nearest target that keeps at least skin above every plane through p: target itself when it
+// does, else the projection onto the subset of planes active at the optimum, found by trying every subset
+// (at most seven) and keeping the nearest feasible answer. p itself when none is feasible.
 Vec3 constrain(const Vec3& target, const Vec3& p, const Vec3* n, int count, double skin) {
+  auto feasible = [&](const Vec3& x) {
+    for (int i = 0; i < count; ++i)
+      if (!(n[i].dot(x - p) >= 0.5 * skin)) return false;
+    return true;
+  };
+  if (feasible(target)) return target;
   Vec3 best = p;
   double bestDistance = std::numeric_limits<double>::infinity();
-  for (unsigned mask = 0; mask < (1u << count); ++mask) {
+  for (unsigned mask = 1; mask < (1u << count); ++mask) {
     Vec3 x;
-    if (!projectOnto(target, p, n, mask, skin, x)) continue;
-    bool feasible = true;
-    for (int i = 0; i < count; ++i) feasible = feasible && n[i].dot(x - p) >= 0.5 * skin;
+    if (!projectOnto(target, p, n, mask, skin, x) || !feasible(x)) continue;
     const double distance = (x - target).squaredNorm();
-    if (feasible && distance < bestDistance) {
+    if (distance < bestDistance) {
       best = x;
       bestDistance = distance;
     }
@@ -94,7 +106,7 @@ void HapticRenderer::reset(const Vec3& position) {
 }
 
 Vec3 HapticRenderer::solve(const SweptScene& scene, const Vec3& from, const Vec3& target, Planes& planes,
-                           ProxyTick& out) const {
+                           ProxyTick& out) {
   const double r = parameters_.radius;
   // The goal keeps this much above each plane: a slide then moves away from the surface it rests on by a
   // hair instead of into it by rounding, and the swept query lets it go.
@@ -103,9 +115,11 @@ Vec3 HapticRenderer::solve(const SweptScene& scene, const Vec3& from, const Vec3
   SceneSweptContact hit;
   for (int i = 0; i < kIterations; ++i) {
     if (goal == p) break;
-    scene.sweep(p, goal, r, hit);
+    scene.sweep(p, goal, r, hit, hint_.object, hint_.triangle);
     ++out.sweeps;
+    out.trianglesTested += hit.contact.trianglesTested;
     if (!hit.contact.hit) return goal;
+    hint_ = {hit.object, hit.contact.triangle};
     p = p + hit.contact.toi * (goal - p);
     if (planes.count == 0) planes.anchor = p;
     if (!out.contact) {

@@ -82,9 +82,12 @@ inline bool capsuleMissesTriangle(const Vec3& v0, const Vec3& v1, const Vec3& v2
 }  // namespace
 
 bool sweptSphereTriangle(const Vec3& a, const Vec3& d, double R, const Vec3& v0, const Vec3& v1, const Vec3& v2,
-                         double& toi, bool& startInContact) noexcept {
+                         double& toi, bool& startInContact, double tMax) noexcept {
   const double dd = d.squaredNorm();
-  if (capsuleMissesTriangle(v0, v1, v2, a, d, dd, R)) return false;
+  if (!(tMax >= 0.0)) return false;
+  if (tMax < 1.0 ? capsuleMissesTriangle(v0, v1, v2, a, tMax * d, tMax * tMax * dd, R)
+                 : capsuleMissesTriangle(v0, v1, v2, a, d, dd, R))
+    return false;
   const Vec3 w = a - closestPointOnTriangle(a, v0, v1, v2);
   const double f2 = w.squaredNorm();
   if (f2 <= R * R) {
@@ -102,18 +105,30 @@ bool sweptSphereTriangle(const Vec3& a, const Vec3& d, double R, const Vec3& v0,
   t = std::min(t, sphereEntry(a - v0, d, dd, R));
   t = std::min(t, sphereEntry(a - v1, d, dd, R));
   t = std::min(t, sphereEntry(a - v2, d, dd, R));
-  if (!(t <= 1.0)) return false;
+  if (!(t <= std::min(1.0, tMax))) return false;
   startInContact = false;
   toi = t;
   return true;
 }
 
-/** The smallest time of impact so far, ties to the lowest triangle. */
+/**
+ * The smallest time of impact so far, ties to the lowest triangle; and the triangles tested lately, by their
+ * low bits (a triangle is listed by most of the cells around it, and a sweep meets several): a second test of
+ * one would answer the same, as the best time only decreases.
+ */
 struct SweptSphereQuery::Best {
   double toi = kNever;
   std::int32_t triangle = -1;
   bool start = false;
   std::uint32_t tested = 0;
+  std::uint32_t seen[64];
+  Best() { std::fill(seen, seen + 64, ~0u); }
+  bool firstTime(std::uint32_t t) {
+    std::uint32_t& slot = seen[t & 63];
+    if (slot == t) return false;
+    slot = t;
+    return true;
+  }
   void offer(std::uint32_t t, double toiT, bool startT) {
     if (toiT < toi || (toiT == toi && static_cast<std::int32_t>(t) < triangle)) {
       toi = toiT;
@@ -162,7 +177,7 @@ SweptContact bruteForceSweep(const TriangleMesh& mesh, const Vec3& a, const Vec3
     double toi;
     bool start = false;
     ++out.trianglesTested;
-    if (sweptSphereTriangle(la, d, R, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), toi, start) &&
+    if (sweptSphereTriangle(la, d, R, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), toi, start, best) &&
         toi < best) {
       best = toi;
       out.triangle = static_cast<std::int32_t>(t);
@@ -192,22 +207,27 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
 
 void SweptSphereQuery::testTriangle(std::uint32_t t, const Vec3& a, const Vec3& d, double R,
                                     Best& best) const noexcept {
+  if (!best.firstTime(t)) return;
   const Triangle& tri = mesh_->triangles[t];
   const Vec3* v = mesh_->vertices.data();
   double toi;
   bool start = false;
   ++best.tested;
-  if (sweptSphereTriangle(a, d, R, v[tri[0]], v[tri[1]], v[tri[2]], toi, start)) best.offer(t, toi, start);
+  if (sweptSphereTriangle(a, d, R, v[tri[0]], v[tri[1]], v[tri[2]], toi, start, best.toi)) best.offer(t, toi, start);
 }
 
-void SweptSphereQuery::sweep(const Vec3& a, const Vec3& b, double r, SweptContact& out) const noexcept {
+void SweptSphereQuery::sweep(const Vec3& a, const Vec3& b, double r, SweptContact& out,
+                             std::int32_t hint) const noexcept {
   out = SweptContact{};
   if (!validPointer(a, r) || !b.allFinite()) return;
   const Vec3 la = mesh_->toLocal(a), lb = mesh_->toLocal(b), d = lb - la;
   const double R = sweptRadiusMargin(r, magnitudeOf(la, lb));
   Best best;
+  // A likely first contact tested first: its time bounds the search from the start.
+  if (hint >= 0 && static_cast<std::size_t>(hint) < mesh_->size())
+    testTriangle(static_cast<std::uint32_t>(hint), la, d, R, best);
   // The grid serves a sweep of up to a few thousand cells; a longer one takes the tree, which skips empty space.
-  if (grid_ != nullptr && R <= grid_->radius() && d.norm() <= 4096.0 * grid_->cellSize())
+  if (grid_ != nullptr && r <= grid_->radius() && d.norm() <= 4096.0 * grid_->cellSize())
     sweepGrid(la, d, R, best);
   else
     sweepTree(la, d, R, best);
@@ -229,14 +249,32 @@ void SweptSphereQuery::sweepGrid(const Vec3& a, const Vec3& d, double R, Best& b
   for (int k = 0; k < pieces; ++k) {
     const double t0 = static_cast<double>(k) / pieces, t1 = static_cast<double>(k + 1) / pieces;
     const Vec3 p0 = a + t0 * d, p1 = k + 1 == pieces ? Vec3(a + d) : Vec3(a + t1 * d);
-    std::int64_t lo[3], hi[3];
-    grid.cellCoordinates(p0.cwiseMin(p1) - Vec3::Constant(pad), lo);
-    grid.cellCoordinates(p0.cwiseMax(p1) + Vec3::Constant(pad), hi);
-    for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
-      for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
-        for (std::int64_t x = lo[0]; x <= hi[0]; ++x) {
+    // The cells the piece passes through, up to the best time so far (the candidates of a cell already reach
+    // every triangle within the grid radius of its points): recomputed when a contact shortens the piece.
+    std::int64_t lo[3], hi[3], start[3];
+    auto cellsOfPiece = [&]() {
+      const Vec3 end = best.toi >= t1 ? p1 : Vec3(a + std::max(t0, best.toi) * d);
+      grid.cellCoordinates(p0.cwiseMin(end) - Vec3::Constant(pad), lo);
+      grid.cellCoordinates(p0.cwiseMax(end) + Vec3::Constant(pad), hi);
+    };
+    cellsOfPiece();
+    // The start's cell first: a contact near the start, found early, shrinks the rest.
+    grid.cellCoordinates(p0, start);
+    const std::uint64_t first = grid.keyAt(start[0], start[1], start[2]);
+    if (first != CellGrid::kOutside) {
+      sweepCell(first, p0, p1, a, d, R, t0, t1, best);
+      cellsOfPiece();
+    }
+    const std::int64_t x0 = lo[0], x1 = hi[0], y0 = lo[1], y1 = hi[1], z0 = lo[2], z1 = hi[2];
+    for (std::int64_t z = z0; z <= z1; ++z)
+      for (std::int64_t y = y0; y <= y1; ++y)
+        for (std::int64_t x = x0; x <= x1; ++x) {
+          if (x < lo[0] || x > hi[0] || y < lo[1] || y > hi[1] || z < lo[2] || z > hi[2]) continue;
           const std::uint64_t key = grid.keyAt(x, y, z);
-          if (key != CellGrid::kOutside) sweepCell(key, p0, p1, a, d, R, best);
+          if (key == CellGrid::kOutside || key == first) continue;
+          const double before = best.toi;
+          sweepCell(key, p0, p1, a, d, R, t0, t1, best);
+          if (best.toi < before) cellsOfPiece();
         }
     // Every contact at a time up to t1 has its centre in the pieces seen: the first one is known.
     if (best.toi <= t1) return;
@@ -244,17 +282,28 @@ void SweptSphereQuery::sweepGrid(const Vec3& a, const Vec3& d, double R, Best& b
 }
 
 void SweptSphereQuery::sweepCell(std::uint64_t key, const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& d,
-                                 double R, Best& best) const noexcept {
+                                 double R, double t0, double t1, Best& best) const noexcept {
   const CellGrid& grid = *grid_;
   const CellGrid::CellRef* ref = grid.find(key);
   if (ref == nullptr) return;  // no triangle within the grid radius of this cell
+  if (best.toi < t0) return;   // every contact through this piece comes later
   const CellGrid::Cell cell = grid.cell(*ref);
   const Vec3 centre = grid.centreOf(key);
-  const Vec3 r0 = p0 - centre, r1 = p1 - centre;
-  const double n0 = r0.norm(), n1 = r1.norm();
+  // The bounds hold for the piece up to the best time so far (a contact after it cannot win): its far end
+  // moves back each time a contact is found.
+  const Vec3 r0 = p0 - centre;
+  const double n0 = r0.norm();
+  Vec3 r1;
+  double n1 = 0.0, reach = 0.0, end = -1.0;
   // The 8-bit directions' rounding (|u - stored| <= sqrt(3) / 254) grows with the distance from the centre.
   const double slack = grid.slack(), along = 1.7320508075688772 / 254.0;
-  const double reach = std::max(n0, n1) + slack;
+  auto shrink = [&]() {
+    end = std::min(t1, best.toi);
+    r1 = (end >= t1 ? p1 : Vec3(a + end * d)) - centre;
+    n1 = r1.norm();
+    reach = std::max(n0, n1) + slack;
+  };
+  shrink();
   const double unit = grid.distanceUnit();
   for (std::uint32_t i = 0; i < cell.count; ++i) {
     const CellGrid::Entry& e = cell.entries[i];
@@ -266,6 +315,7 @@ void SweptSphereQuery::sweepCell(std::uint64_t key, const Vec3& p0, const Vec3& 
     const double u1 = (r1.x() * e.direction[0] + r1.y() * e.direction[1] + r1.z() * e.direction[2]) * (1.0 / 127.0);
     if (std::min(u0 - along * n0, u1 - along * n1) + dc - slack > R) continue;
     testTriangle(e.triangle, a, d, R, best);
+    if (best.toi < end) shrink();
   }
 }
 

@@ -57,7 +57,8 @@ void SweptScene::updateBound(Object& o) {
   o.boundRadius = 0.5 * box.diagonal().norm() * (1.0 + 1e-9) + 1e-9 * o.boundCentre.cwiseAbs().maxCoeff();
 }
 
-void SweptScene::sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact& out) const noexcept {
+void SweptScene::sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact& out, std::int32_t hintObject,
+                       std::int32_t hintTriangle) const noexcept {
   out = SceneSweptContact{};
   SweptContact c;
   for (std::size_t i = 0; i < objects_.size(); ++i) {
@@ -65,7 +66,8 @@ void SweptScene::sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact
     if (!o.active) continue;
     const double reach = o.boundRadius + r * (1.0 + 1e-9);
     if (!(squaredDistanceToSegment(o.boundCentre, a, b) <= reach * reach)) continue;
-    o.query->sweep(o.objectFromWorld * a, o.objectFromWorld * b, r, c);
+    o.query->sweep(o.objectFromWorld * a, o.objectFromWorld * b, r, c,
+                   static_cast<std::int32_t>(i) == hintObject ? hintTriangle : -1);
     out.contact.trianglesTested += c.trianglesTested;
     if (!c.hit || (out.object >= 0 && !(c.toi < out.contact.toi))) continue;
     const std::uint32_t tested = out.contact.trianglesTested;

@@ -20,18 +20,19 @@ struct ProxyParameters {
 
 /** \brief What one tick of the proxy answers. */
 struct ProxyTick {
-  Vec3 proxy = Vec3::Zero();   ///< proxy centre after the tick (world)
-  Vec3 device = Vec3::Zero();  ///< device point of the tick
-  Vec3 force = Vec3::Zero();   ///< force on the device (N): stiffness (proxy - device) + damping, clamped
-  bool contact = false;        ///< a constraint held the proxy back this tick
-  Vec3 point = Vec3::Zero();   ///< surface point of the first constraint (world), valid with contact
-  Vec3 normal = Vec3::Zero();  ///< its unit normal, pointing from the surface towards the proxy
-  std::int32_t object = -1;    ///< object of the first constraint
-  std::int32_t triangle = -1;  ///< triangle of the first constraint
-  std::uint32_t planes = 0;    ///< constraint planes active at the end of the solve (0 to 3)
-  std::uint32_t sweeps = 0;    ///< swept queries run
-  bool sticking = false;       ///< static friction held the proxy in place
-  bool sliding = false;        ///< the proxy slid under dynamic friction
+  Vec3 proxy = Vec3::Zero();          ///< proxy centre after the tick (world)
+  Vec3 device = Vec3::Zero();         ///< device point of the tick
+  Vec3 force = Vec3::Zero();          ///< force on the device (N): stiffness (proxy - device) + damping, clamped
+  bool contact = false;               ///< a constraint held the proxy back this tick
+  Vec3 point = Vec3::Zero();          ///< surface point of the first constraint (world), valid with contact
+  Vec3 normal = Vec3::Zero();         ///< its unit normal, pointing from the surface towards the proxy
+  std::int32_t object = -1;           ///< object of the first constraint
+  std::int32_t triangle = -1;         ///< triangle of the first constraint
+  std::uint32_t planes = 0;           ///< constraint planes active at the end of the solve (0 to 3)
+  std::uint32_t sweeps = 0;           ///< swept queries run
+  std::uint32_t trianglesTested = 0;  ///< exact triangle tests of those sweeps
+  bool sticking = false;              ///< static friction held the proxy in place
+  bool sliding = false;               ///< the proxy slid under dynamic friction
 };
 
 /**
@@ -76,7 +77,7 @@ class HapticRenderer {
 
  private:
   struct Planes;
-  Vec3 solve(const SweptScene& scene, const Vec3& from, const Vec3& target, Planes& planes, ProxyTick& out) const;
+  Vec3 solve(const SweptScene& scene, const Vec3& from, const Vec3& target, Planes& planes, ProxyTick& out);
   Vec3 friction(const SweptScene& scene, const Vec3& start, const Vec3& device, const Vec3& free, const Vec3& normal,
                 ProxyTick& out);
   Vec3 force(const SweptScene& scene, const Vec3& device, double dt, const ProxyTick& tick) const;
@@ -87,6 +88,9 @@ class HapticRenderer {
   Vec3 proxy_ = Vec3::Zero();
   Vec3 lastProxy_ = Vec3::Zero();
   Vec3 lastDevice_ = Vec3::Zero();
+  struct Hint {
+    std::int32_t object = -1, triangle = -1;
+  } hint_;  // the last contact: tested first by the next sweep
 };
 
 }  // namespace clod_haptics

@@ -48,10 +48,12 @@ inline double sweptRadiusMargin(double r, double magnitude) { return r + 1e-10 *
 /**
  * \brief The exact test of one triangle (v0, v1, v2) against the sphere of radius R whose centre moves
  * from a by d (face plane, three edge capsules, three vertex spheres, in double), with SweptContact's rules.
- * \return true with the time of impact in toi (in [0, 1]) and whether it is a start in contact.
+ * tMax: only a contact at a time up to it is reported (the best so far of a search; the test is cheaper
+ * the earlier it is); the time reported does not depend on it.
+ * \return true with the time of impact in toi (in [0, min(1, tMax)]) and whether it is a start in contact.
  */
 bool sweptSphereTriangle(const Vec3& a, const Vec3& d, double R, const Vec3& v0, const Vec3& v1, const Vec3& v2,
-                         double& toi, bool& startInContact) noexcept;
+                         double& toi, bool& startInContact, double tMax = 1.0) noexcept;
 
 /**
  * \brief The reference: every triangle of the mesh with sweptSphereTriangle, the smallest time of impact
@@ -63,8 +65,12 @@ SweptContact bruteForceSweep(const TriangleMesh& mesh, const Vec3& a, const Vec3
  * \brief The accelerated swept-sphere query of one mesh: answers exactly what bruteForceSweep answers.
  *
  * For radii the detector's grid serves (ClodDetector::grid(), r up to gridRadius()), the sweep is cut into
- * pieces no longer than a cell, and the candidates of the cells each piece's box meets are tested, piece by
- * piece until the first contact lies within the pieces seen: a sweep of one cell costs about a point query.
+ * pieces no longer than a cell, and the candidates of the cells each piece passes through are tested, piece
+ * by piece until the first contact lies within the pieces seen, the piece cut back to the best time so far:
+ * a short sweep costs a few point queries. The grid lists every triangle within its radius of a cell, so
+ * every contact at radius r is found; a triangle that comes within the rounding margin beyond the grid's
+ * radius but never within it may be passed over there (the answer then differs from bruteForceSweep's only
+ * within that margin, and still reports no path free that is blocked at radius r).
  * Larger radii, or a mesh without a grid, walk a box tree over the triangles (the BoxNode tree of the
  * detector's hierarchy, built here over triangles) with the capsule, nearest node first.
  *
@@ -82,9 +88,11 @@ class SweptSphereQuery {
 
   /**
    * \brief The first contact of the sphere (radius r) moving a -> b (model frame), as bruteForceSweep.
-   * Non-finite input or a radius outside [0, kMaxRadius] answers no hit.
+   * Non-finite input or a radius outside [0, kMaxRadius] answers no hit. hint: a triangle likely to be the
+   * first contact (a proxy's last contact), tested first so that its time prunes the rest; the answer is
+   * the same with any hint.
    */
-  void sweep(const Vec3& a, const Vec3& b, double r, SweptContact& out) const noexcept;
+  void sweep(const Vec3& a, const Vec3& b, double r, SweptContact& out, std::int32_t hint = -1) const noexcept;
 
   /** \brief The mesh. */
   const std::shared_ptr<const TriangleMesh>& mesh() const { return mesh_; }
@@ -95,8 +103,8 @@ class SweptSphereQuery {
   struct Best;
   void testTriangle(std::uint32_t t, const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
   void sweepGrid(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
-  void sweepCell(std::uint64_t key, const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& d, double R,
-                 Best& best) const noexcept;
+  void sweepCell(std::uint64_t key, const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& d, double R, double t0,
+                 double t1, Best& best) const noexcept;
   void sweepTree(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
 
   std::shared_ptr<const TriangleMesh> mesh_;

@@ -37,8 +37,12 @@ class SweptScene {
   /** \brief An inactive object is skipped by sweeps (e.g. its pose is unknown). Objects start active. */
   void setActive(std::uint32_t i, bool active) { objects_[i].active = active; }
 
-  /** \brief The first contact of the sphere (radius r) moving a -> b in the world frame, over all objects. */
-  void sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact& out) const noexcept;
+  /**
+   * \brief The first contact of the sphere (radius r) moving a -> b in the world frame, over all objects. hint:
+   * a likely first contact (object and triangle, as SweptSphereQuery::sweep's hint; -1: none).
+   */
+  void sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact& out, std::int32_t hintObject = -1,
+             std::int32_t hintTriangle = -1) const noexcept;
 
   /**
    * \brief The normal at a world point of triangle t of object i interpolated from its corners' angle-weighted
