@@ -69,25 +69,23 @@ inline double faceEntry(const Vec3& v0, const Vec3& v1, const Vec3& v2, const Ve
   return inside ? t : kNever;
 }
 
-// Whether the capsule (a -> a + d, radius R) cannot reach the triangle: the centroid's ball around it misses.
-inline bool capsuleMissesTriangle(const Vec3& v0, const Vec3& v1, const Vec3& v2, const Vec3& a, const Vec3& d,
-                                  double dd, double R) {
-  const Vec3 c = (v0 + v1 + v2) * (1.0 / 3.0);
-  const double rho = std::sqrt(std::max({(v0 - c).squaredNorm(), (v1 - c).squaredNorm(), (v2 - c).squaredNorm()}));
-  const double t = dd > 0.0 ? std::clamp((c - a).dot(d) / dd, 0.0, 1.0) : 0.0;
+// The ball around a triangle the capsule test uses: its centroid and the distance to its farthest corner.
+inline void boundingBall(const Vec3& v0, const Vec3& v1, const Vec3& v2, Vec3& c, double& rho) {
+  c = (v0 + v1 + v2) * (1.0 / 3.0);
+  rho = std::sqrt(std::max({(v0 - c).squaredNorm(), (v1 - c).squaredNorm(), (v2 - c).squaredNorm()}));
+}
+
+// Whether the capsule (a -> a + tMax d, radius R) cannot reach the ball (c, rho) around a triangle.
+inline bool capsuleMissesBall(const Vec3& c, double rho, const Vec3& a, const Vec3& d, double dd, double R,
+                              double tMax) {
+  const double t = dd > 0.0 ? std::clamp((c - a).dot(d) / dd, 0.0, std::min(1.0, tMax)) : 0.0;
   const double reach = (rho + R) * (1.0 + 1e-12);
   return (a + t * d - c).squaredNorm() > reach * reach;
 }
 
-}  // namespace
-
-bool sweptSphereTriangle(const Vec3& a, const Vec3& d, double R, const Vec3& v0, const Vec3& v1, const Vec3& v2,
-                         double& toi, bool& startInContact, double tMax) noexcept {
-  const double dd = d.squaredNorm();
-  if (!(tMax >= 0.0)) return false;
-  if (tMax < 1.0 ? capsuleMissesTriangle(v0, v1, v2, a, tMax * d, tMax * tMax * dd, R)
-                 : capsuleMissesTriangle(v0, v1, v2, a, d, dd, R))
-    return false;
+// sweptSphereTriangle after the capsule test.
+bool exactSweep(const Vec3& a, const Vec3& d, double dd, double R, const Vec3& v0, const Vec3& v1, const Vec3& v2,
+                double& toi, bool& startInContact, double tMax) {
   const Vec3 w = a - closestPointOnTriangle(a, v0, v1, v2);
   const double f2 = w.squaredNorm();
   if (f2 <= R * R) {
@@ -109,6 +107,19 @@ bool sweptSphereTriangle(const Vec3& a, const Vec3& d, double R, const Vec3& v0,
   startInContact = false;
   toi = t;
   return true;
+}
+
+}  // namespace
+
+bool sweptSphereTriangle(const Vec3& a, const Vec3& d, double R, const Vec3& v0, const Vec3& v1, const Vec3& v2,
+                         double& toi, bool& startInContact, double tMax) noexcept {
+  const double dd = d.squaredNorm();
+  if (!(tMax >= 0.0)) return false;
+  Vec3 c;
+  double rho;
+  boundingBall(v0, v1, v2, c, rho);
+  if (capsuleMissesBall(c, rho, a, d, dd, R, tMax)) return false;
+  return exactSweep(a, d, dd, R, v0, v1, v2, toi, startInContact, tMax);
 }
 
 /**
@@ -198,8 +209,17 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
   if (detector_ && detector_->mesh() != mesh_) throw InvalidParameter("SweptSphereQuery: detector of another mesh");
   if (detector_ && !detector_->grid().empty()) grid_ = &detector_->grid();
   std::vector<Eigen::AlignedBox3d> boxes(mesh_->size());
-  for (std::size_t t = 0; t < mesh_->size(); ++t)
-    for (int k = 0; k < 3; ++k) boxes[t].extend(mesh_->vertex(t, k));
+  records_.resize(13 * mesh_->size());
+  for (std::size_t t = 0; t < mesh_->size(); ++t) {
+    double* rec = records_.data() + 13 * t;
+    Vec3 c;
+    boundingBall(mesh_->vertex(t, 0), mesh_->vertex(t, 1), mesh_->vertex(t, 2), c, rec[3]);
+    for (int k = 0; k < 3; ++k) {
+      rec[k] = c[k];
+      for (int j = 0; j < 3; ++j) rec[4 + 3 * k + j] = mesh_->vertex(t, k)[j];
+      boxes[t].extend(mesh_->vertex(t, k));
+    }
+  }
   const Eigen::AlignedBox3d bounds = mesh_->bounds();
   const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());
   buildBoxTree(boxes, 4, 1e-12 * std::max(magnitude, bounds.diagonal().norm()), nodes_, order_);
@@ -208,12 +228,16 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
 void SweptSphereQuery::testTriangle(std::uint32_t t, const Vec3& a, const Vec3& d, double R,
                                     Best& best) const noexcept {
   if (!best.firstTime(t)) return;
-  const Triangle& tri = mesh_->triangles[t];
-  const Vec3* v = mesh_->vertices.data();
+  // One record of 13 doubles: the ball first (often all a test reads), then the corners.
+  const double* rec = records_.data() + 13 * static_cast<std::size_t>(t);
+  ++best.tested;
+  const double dd = d.squaredNorm();
+  if (capsuleMissesBall(Vec3(rec[0], rec[1], rec[2]), rec[3], a, d, dd, R, best.toi)) return;
   double toi;
   bool start = false;
-  ++best.tested;
-  if (sweptSphereTriangle(a, d, R, v[tri[0]], v[tri[1]], v[tri[2]], toi, start, best.toi)) best.offer(t, toi, start);
+  if (exactSweep(a, d, dd, R, Vec3(rec[4], rec[5], rec[6]), Vec3(rec[7], rec[8], rec[9]),
+                 Vec3(rec[10], rec[11], rec[12]), toi, start, best.toi))
+    best.offer(t, toi, start);
 }
 
 void SweptSphereQuery::sweep(const Vec3& a, const Vec3& b, double r, SweptContact& out,

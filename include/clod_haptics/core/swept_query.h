@@ -110,6 +110,7 @@ class SweptSphereQuery {
   std::shared_ptr<const TriangleMesh> mesh_;
   std::shared_ptr<const ClodDetector> detector_;
   const CellGrid* grid_ = nullptr;  // the detector's grid, null when it has none
+  std::vector<double> records_;     // per triangle: its ball (centre, radius), then its corners (local frame)
   std::vector<BoxNode> nodes_;      // box tree over the triangles (local frame)
   std::vector<std::uint32_t> order_;
 };
