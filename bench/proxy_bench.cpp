@@ -4,6 +4,7 @@
 #include <x86intrin.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -205,6 +206,13 @@ Outcome run(const Model& m, const std::vector<Vec3>& path, bool proxy) {
   return o;
 }
 
+std::string loadAverage() {
+  std::ifstream in("/proc/loadavg");
+  std::string a, b, c;
+  in >> a >> b >> c;
+  return a + " " + b + " " + c;
+}
+
 std::string num(double v) {
   std::ostringstream o;
   o.precision(5);
@@ -336,6 +344,8 @@ void proxySection(const std::vector<std::string>& sharedPaths, const std::string
         "point pushed out by r) passes through the part between two ticks (a sphere of r/2 swept between the two "
         "meets the mesh). Ticks pushing along the motion (the issue's measure) also count a proxy that slides round "
         "a thin cylinder and pulls the stylus on beside it.\n";
+  const std::string loadBefore = loadAverage();
+  const auto started = std::chrono::steady_clock::now();
   std::vector<std::unique_ptr<Model>> models = thinModels();
   for (const std::string& path : sharedPaths) {
     try {
@@ -357,6 +367,10 @@ void proxySection(const std::vector<std::string>& sharedPaths, const std::string
     if (m->kind == "shared" && !trajectory.empty()) costs(*m, "trajectory", placeOver(trajectory, *m->mesh), cost, md);
     std::cout << "  proxy: " << m->name << " costs measured\n" << std::flush;
   }
+  md << "\nRun: " << (quick ? "quick" : "full") << ", "
+     << std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count()
+     << " s, load average before " << loadBefore << ", after " << loadAverage()
+     << " (2 cores shared with other jobs: the p99 and max columns include preemption).\n";
 }
 
 }  // namespace clod_bench
