@@ -524,22 +524,25 @@ void HapticDetector::publishAnswer(const geometry_msgs::PoseStamped& msg, const 
   if (!msg.header.frame_id.empty()) wrench->header.frame_id = msg.header.frame_id;
   toMsg(Vec3(sceneFromPose.linear().transpose() * force), wrench->wrench);
 
-  if (proxy && proxyPub_.getNumSubscribers() > 0) {
-    auto pose = boost::make_shared<geometry_msgs::PoseStamped>();
-    pose->header = header;
-    // At the proxy, with the stylus's orientation brought into the scene frame.
-    const geometry_msgs::Quaternion& o = msg.pose.orientation;
-    const Eigen::Quaterniond q(o.w, o.x, o.y, o.z);
-    Eigen::Isometry3d stylus = Eigen::Isometry3d::Identity();
-    if (q.norm() > 0.0) stylus.linear() = sceneFromPose.linear() * q.normalized().toRotationMatrix();
-    stylus.translation() = proxy->proxy;
-    pose->pose = toPose(stylus);
-    proxyPub_.publish(pose);
-  }
+  if (proxy && proxyPub_.getNumSubscribers() > 0) publishProxyPose(msg, header, sceneFromPose, proxy->proxy);
   contactPub_.publish(contact);
   contactsPub_.publish(array);
   forcePub_.publish(wrench);
   answered_.fetch_add(1, std::memory_order_relaxed);
+}
+
+void HapticDetector::publishProxyPose(const geometry_msgs::PoseStamped& msg, const std_msgs::Header& header,
+                                      const Eigen::Isometry3d& sceneFromPose, const Vec3& proxy) {
+  // At the proxy, with the stylus's orientation brought into the scene frame.
+  auto pose = boost::make_shared<geometry_msgs::PoseStamped>();
+  pose->header = header;
+  const geometry_msgs::Quaternion& o = msg.pose.orientation;
+  const Eigen::Quaterniond q(o.w, o.x, o.y, o.z);
+  Eigen::Isometry3d stylus = Eigen::Isometry3d::Identity();
+  if (q.norm() > 0.0) stylus.linear() = sceneFromPose.linear() * q.normalized().toRotationMatrix();
+  stylus.translation() = proxy;
+  pose->pose = toPose(stylus);
+  proxyPub_.publish(pose);
 }
 
 void HapticDetector::keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts, const ProxyTick* proxy) {

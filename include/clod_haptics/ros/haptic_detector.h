@@ -153,6 +153,8 @@ class HapticDetector {
                      const Eigen::Isometry3d& sceneFromPose, const SceneQueryResult& out, std::int64_t detectionNs,
                      const ProxyTick* proxy);
   void keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts, const ProxyTick* proxy);
+  void publishProxyPose(const geometry_msgs::PoseStamped& msg, const std_msgs::Header& header,
+                        const Eigen::Isometry3d& sceneFromPose, const Vec3& proxy);
   bool renderProxy(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius, bool touching, ProxyTick& tick);
 
   // Levels (haptic_detector_levels.cpp).
