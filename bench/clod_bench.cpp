@@ -3,7 +3,7 @@
 // the triangle count. Writes CSV files for bench/report.py. A benchmark, never a test.
 //
 //   clod_bench --shared ../shared --out bench/results [--quick] [--meshes a.off,b.off]
-//              [--sections sweep,peers,tightness,growth,contact]
+//              [--sections sweep,peers,tightness,growth,contact,proxy]
 
 #include <benchmark/benchmark.h>
 #include <malloc.h>
@@ -41,6 +41,7 @@
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/sphere_placement.h"
 #include "clod_haptics/core/sphere_set.h"
+#include "proxy_bench.h"
 #include "tightness.h"
 
 namespace fs = std::filesystem;
@@ -56,7 +57,7 @@ struct Settings {
   std::string shared;
   std::string out;
   std::set<std::string> meshes;  // empty: all
-  std::set<std::string> sections{"sweep", "peers", "tightness", "growth", "contact"};
+  std::set<std::string> sections{"sweep", "peers", "tightness", "growth", "contact", "proxy"};
   double r = 0.005;
   std::vector<double> distances{0.0, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08};
   std::size_t probes = 100000;          // per probe set (near-surface, uniform)
@@ -1230,7 +1231,7 @@ int main(int argc, char** argv) {
       s.sections = splitList(next());
     } else {
       std::cerr << "usage: clod_bench --shared DIR --out DIR [--quick] [--meshes a.off,b.off] "
-                   "[--sections sweep,peers,tightness,growth,contact]\n";
+                   "[--sections sweep,peers,tightness,growth,contact,proxy]\n";
       return 2;
     }
   }
@@ -1369,6 +1370,7 @@ int main(int argc, char** argv) {
     }
   }
   if (has(s, "contact")) contactSection(run, meshes, meshDir);
+  if (has(s, "proxy")) proxySection(meshes, s.out, s.quick, run.trajectory);
   // The whole run's length, its sections and the load after it (other jobs share the machine): added to run.csv.
   std::string sections;
   for (const std::string& x : s.sections) sections += (sections.empty() ? "" : " ") + x;

@@ -107,6 +107,7 @@ void toMsg(const ContactResult& result, const Vec3& pointer, double radius, Cont
   msg.spheres_hit = result.spheresHit;
   msg.triangles_tested = result.trianglesTested;
   msg.pointer = toPoint(pointer);
+  msg.proxy = msg.pointer;  // the penalty model's; the proxy model sets its own
   msg.pointer_radius = radius;
 }
 

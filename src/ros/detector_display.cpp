@@ -64,12 +64,17 @@ void DetectorDisplay::update(const std::vector<std::shared_ptr<const ClodDetecto
   header.frame_id = sceneFrame_;
   if (!switches_.pointer) {
     out.markers.push_back(deleteMarker(marker_ns::kPointer, 0, header));
+    out.markers.push_back(deleteMarker(marker_ns::kProxy, 0, header));
     return;
   }
   const bool touching = !frame.contacts.empty();
   out.markers.push_back(
       pointerMarker(frame.pointer, frame.radius, header,
                     touching ? makeColor(1.0f, 0.2f, 0.2f, 0.9f) : makeColor(0.1f, 0.9f, 0.2f, 0.9f)));
+  // The proxy stays on the surface while the device point sinks in: drawn half transparent beside it.
+  out.markers.push_back(frame.haveProxy ? pointerMarker(frame.proxy, frame.radius, header,
+                                                        makeColor(0.2f, 0.4f, 1.0f, 0.6f), marker_ns::kProxy)
+                                        : deleteMarker(marker_ns::kProxy, 0, header));
 }
 
 void DetectorDisplay::appendMesh(std::size_t i, visualization_msgs::MarkerArray& out) const {

@@ -179,6 +179,9 @@ void HapticDetector::loadObjects() {
     state.poseKnown = !state.viaTf;
     const auto index = scene_.addObject(object.name, mesh, nullptr, object.offset);
     scene_.setActive(index, state.poseKnown);
+    firstSweeps_.push_back(std::make_shared<const SweptSphereQuery>(mesh));  // its own tree until a level comes
+    sweptScene_.add(firstSweeps_.back(), object.offset);
+    sweptScene_.setActive(index, state.poseKnown);
     objects_.push_back(state);
 
     DisplayObject d;
@@ -215,6 +218,7 @@ void HapticDetector::advertise() {
   contactPub_ = pnh_.advertise<Contact>("contact", queue);
   contactsPub_ = pnh_.advertise<ContactArray>("contacts", queue);
   forcePub_ = pnh_.advertise<geometry_msgs::WrenchStamped>("force", queue);
+  proxyPub_ = pnh_.advertise<geometry_msgs::PoseStamped>("proxy", queue);
   statusPub_ = pnh_.advertise<DetectorStatus>("status", 1, true);
   // A new marker subscriber gets the meshes and levels once; afterwards only what changes.
   markerPub_ = displayPnh_.advertise<visualization_msgs::MarkerArray>(
@@ -349,14 +353,18 @@ void HapticDetector::updateObjectPoses(const ros::Time& stamp) {
     if (!o.config.moving && now < o.nextRetry) continue;  // a static frame tf2 did not know: retried now and then
     try {
       const auto tf = lookup(tfBuffer_, config_.frameId, o.config.frameId, o.config.moving ? stamp : ros::Time(0));
-      scene_.setPose(i, toIsometry(tf.transform) * o.config.offset);
+      const Eigen::Isometry3d pose = toIsometry(tf.transform) * o.config.offset;
+      scene_.setPose(i, pose);
       scene_.setActive(i, true);
+      sweptScene_.setPose(i, pose);
+      sweptScene_.setActive(i, true);
       if (!o.poseKnown && !o.config.moving) {
         ROS_INFO("detector: '%s' placed in static frame '%s'", o.config.name.c_str(), o.config.frameId.c_str());
       }
       o.poseKnown = true;
     } catch (const std::exception& e) {  // tf2 errors, or a non-rigid transform
       scene_.setActive(i, false);
+      sweptScene_.setActive(i, false);
       o.poseKnown = false;
       o.nextRetry = now + ros::WallDuration(params_.staticRetry);
       ROS_WARN_THROTTLE(2.0, "detector: '%s' skipped: %s frame '%s': %s", o.config.name.c_str(),
@@ -371,6 +379,7 @@ void HapticDetector::adoptPublishedLevels() {
   for (std::uint32_t i = 0; i < levels->detectors.size(); ++i) {
     // Never the last reference: the snapshot that held the replaced level is freed by the display thread.
     if (scene_.detector(i) != levels->detectors[i]) scene_.setDetector(i, levels->detectors[i]);
+    if (levels->sweeps[i] && sweptScene_.query(i) != levels->sweeps[i]) sweptScene_.setQuery(i, levels->sweeps[i]);
   }
   adoptedId_ = levels->id;
   adopted_.store(adoptedId_, std::memory_order_release);
@@ -412,15 +421,45 @@ void HapticDetector::answer(const ros::MessageEvent<const geometry_msgs::PoseSta
   scene_.query(p, radius, mode, contacts_.data(), contacts_.size(), out, caches_.data());
   const auto elapsed = std::chrono::steady_clock::now() - start;
   if (out.bruteForce > 0) bruteForce_.fetch_add(1, std::memory_order_relaxed);
+  ProxyTick tick;
+  const bool proxy = renderProxy(msg, p, radius, out.contact, tick);
   publishAnswer(msg, p, radius, sceneFromPose, out,
-                std::chrono::duration_cast<std::chrono::nanoseconds>(elapsed).count());
+                std::chrono::duration_cast<std::chrono::nanoseconds>(elapsed).count(), proxy ? &tick : nullptr);
   if (!ros::Time::isSimTime()) posePath_.record((ros::Time::now() - event.getReceiptTime()).toNSec());
-  if (markersWanted_.load(std::memory_order_relaxed)) keepForDisplay(p, radius, out.contacts);
+  if (markersWanted_.load(std::memory_order_relaxed)) keepForDisplay(p, radius, out.contacts, proxy ? &tick : nullptr);
+}
+
+bool HapticDetector::renderProxy(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius, bool touching,
+                                 ProxyTick& tick) {
+  // The proxy starts (again after a switch to it, a new radius, or a stamp going back: a replay restarted) at a
+  // pointer that touches nothing, so that it never starts inside an object; until then the penalty force answers.
+  const ros::Time& stamp = msg.header.stamp;
+  if (proxyActive_ && (radius != proxyRadius_ || stamp < lastStamp_)) proxyActive_ = false;
+  if (!proxyModel_.load(std::memory_order_relaxed) || (!proxyActive_ && touching)) {
+    proxyActive_ = false;
+    return false;
+  }
+  ProxyParameters params;
+  params.radius = radius;
+  params.stiffness = stiffness_.load(std::memory_order_relaxed);
+  params.maxForce = maxForce_.load(std::memory_order_relaxed);
+  params.damping = damping_.load(std::memory_order_relaxed);
+  params.muStatic = muStatic_.load(std::memory_order_relaxed);
+  params.muDynamic = muDynamic_.load(std::memory_order_relaxed);
+  params.forceShading = forceShading_.load(std::memory_order_relaxed);
+  renderer_.setParameters(params);
+  if (!proxyActive_) renderer_.reset(p);
+  const double dt = proxyActive_ && stamp > lastStamp_ ? (stamp - lastStamp_).toSec() : 1e-3;
+  lastStamp_ = stamp;
+  proxyRadius_ = radius;
+  proxyActive_ = true;
+  renderer_.update(sweptScene_, p, dt, tick);
+  return true;
 }
 
 void HapticDetector::publishAnswer(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius,
                                    const Eigen::Isometry3d& sceneFromPose, const SceneQueryResult& out,
-                                   std::int64_t detectionNs) {
+                                   std::int64_t detectionNs, const ProxyTick* proxy) {
   std_msgs::Header header;
   header.stamp = msg.header.stamp;
   header.frame_id = config_.frameId;
@@ -445,14 +484,16 @@ void HapticDetector::publishAnswer(const geometry_msgs::PoseStamped& msg, const 
     m.point = toPoint(c.point);  // scene frame
     m.normal = toVector3(c.normal);
     m.detection_time = detectionTime;
+    if (proxy) m.proxy = toPoint(proxy->proxy);
     const auto& level = scene_.detector(c.object);
     m.clustering_distance = level ? level->spheres()->distance : std::numeric_limits<double>::quiet_NaN();
     m.level_spheres = level ? static_cast<std::uint32_t>(level->spheres()->size()) : 0;
     array->objects[k] = objects_[c.object].config.name;
     array->object_indices[k] = c.object;
   }
-  const Vec3 force = penaltyForce(out.penetration, stiffness_.load(std::memory_order_relaxed),
-                                  maxForce_.load(std::memory_order_relaxed));
+  const Vec3 force = proxy ? proxy->force
+                           : penaltyForce(out.penetration, stiffness_.load(std::memory_order_relaxed),
+                                          maxForce_.load(std::memory_order_relaxed));
   array->penetration = toVector3(out.penetration);
   array->max_depth = out.maxDepth;
   array->deepest = out.deepest;
@@ -474,6 +515,7 @@ void HapticDetector::publishAnswer(const geometry_msgs::PoseStamped& msg, const 
     const auto& level = scene_.detector(0);
     contact->clustering_distance = level ? level->spheres()->distance : std::numeric_limits<double>::quiet_NaN();
     contact->level_spheres = level ? static_cast<std::uint32_t>(level->spheres()->size()) : 0;
+    if (proxy) contact->proxy = toPoint(proxy->proxy);
   }
 
   // The force in the pose's frame, where the device renders it.
@@ -482,13 +524,28 @@ void HapticDetector::publishAnswer(const geometry_msgs::PoseStamped& msg, const 
   if (!msg.header.frame_id.empty()) wrench->header.frame_id = msg.header.frame_id;
   toMsg(Vec3(sceneFromPose.linear().transpose() * force), wrench->wrench);
 
+  if (proxy && proxyPub_.getNumSubscribers() > 0) publishProxyPose(msg, header, sceneFromPose, proxy->proxy);
   contactPub_.publish(contact);
   contactsPub_.publish(array);
   forcePub_.publish(wrench);
   answered_.fetch_add(1, std::memory_order_relaxed);
 }
 
-void HapticDetector::keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts) {
+void HapticDetector::publishProxyPose(const geometry_msgs::PoseStamped& msg, const std_msgs::Header& header,
+                                      const Eigen::Isometry3d& sceneFromPose, const Vec3& proxy) {
+  // At the proxy, with the stylus's orientation brought into the scene frame.
+  auto pose = boost::make_shared<geometry_msgs::PoseStamped>();
+  pose->header = header;
+  const geometry_msgs::Quaternion& o = msg.pose.orientation;
+  const Eigen::Quaterniond q(o.w, o.x, o.y, o.z);
+  Eigen::Isometry3d stylus = Eigen::Isometry3d::Identity();
+  if (q.norm() > 0.0) stylus.linear() = sceneFromPose.linear() * q.normalized().toRotationMatrix();
+  stylus.translation() = proxy;
+  pose->pose = toPose(stylus);
+  proxyPub_.publish(pose);
+}
+
+void HapticDetector::keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts, const ProxyTick* proxy) {
   // For the markers only: if the display thread is copying it right now, this pose is not drawn rather than
   // waiting for a thread of lower priority. Capacities were reserved at start-up: nothing allocates here.
   std::unique_lock<std::mutex> lock(lastMutex_, std::try_to_lock);
@@ -496,6 +553,8 @@ void HapticDetector::keepForDisplay(const Vec3& p, double radius, std::uint32_t 
   ++last_.seq;
   last_.pointer = p;
   last_.radius = radius;
+  last_.haveProxy = proxy != nullptr;
+  if (proxy) last_.proxy = proxy->proxy;
   last_.contacts.assign(contacts_.begin(), contacts_.begin() + contacts);
   for (std::uint32_t i = 0; i < scene_.size(); ++i) {
     last_.poses[i] = scene_.pose(i);

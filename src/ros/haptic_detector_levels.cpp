@@ -57,6 +57,14 @@ void HapticDetector::onReconfigure(DetectorConfig& config, std::uint32_t /*level
   keepFinite(config.pointer_radius, radius_.load(), "pointer_radius");
   keepFinite(config.stiffness, stiffness_.load(), "stiffness");
   keepFinite(config.max_force, maxForce_.load(), "max_force");
+  keepFinite(config.damping, damping_.load(), "damping");
+  keepFinite(config.mu_static, muStatic_.load(), "mu_static");
+  keepFinite(config.mu_dynamic, muDynamic_.load(), "mu_dynamic");
+  if (config.force_model != "proxy" && config.force_model != "penalty") {
+    ROS_WARN("detector: unknown force_model '%s' (proxy or penalty); keeping %s", config.force_model.c_str(),
+             proxyModel_.load() ? "proxy" : "penalty");
+    config.force_model = proxyModel_.load() ? "proxy" : "penalty";
+  }
   DetectionMode mode;
   if (parseDetectionMode(config.detection_mode.c_str(), mode)) {
     mode_ = static_cast<int>(mode);
@@ -68,6 +76,11 @@ void HapticDetector::onReconfigure(DetectorConfig& config, std::uint32_t /*level
   radius_ = config.pointer_radius;
   stiffness_ = config.stiffness;
   maxForce_ = config.max_force;
+  proxyModel_ = config.force_model == "proxy";
+  damping_ = config.damping;
+  muStatic_ = config.mu_static;
+  muDynamic_ = config.mu_dynamic;
+  forceShading_ = config.force_shading;
   DisplaySwitches switches;
   switches.mesh = config.show_mesh;
   switches.spheres = config.show_spheres;
@@ -193,9 +206,13 @@ bool HapticDetector::prepareNextLevel(std::vector<LevelPlan>& plan) {
 
 void HapticDetector::publishLevel(std::size_t object, std::shared_ptr<const ClodDetector> detector,
                                   const std::string& source, double ms) {
+  // The proxy's swept query walks the level's grid; its own tree is built here, off the haptic path.
+  auto sweep = detector ? std::make_shared<const SweptSphereQuery>(detector->mesh(), detector) : nullptr;
   std::lock_guard<std::mutex> lock(levelsMutex_);
   auto next = std::make_shared<Levels>();
   next->detectors = levels_ ? levels_->detectors : std::vector<std::shared_ptr<const ClodDetector>>(objects_.size());
+  next->sweeps = levels_ ? levels_->sweeps : std::vector<std::shared_ptr<const SweptSphereQuery>>(objects_.size());
+  next->sweeps[object] = std::move(sweep);
   next->detectors[object] = std::move(detector);
   next->id = nextLevelsId_++;
   next->source = source;

@@ -1,11 +1,11 @@
 #include "clod_haptics/ros/markers.h"
 
-#include "clod_haptics/ros/conversions.h"
-
 #include <algorithm>
 #include <cmath>
 #include <utility>
 #include <vector>
+
+#include "clod_haptics/ros/conversions.h"
 
 namespace clod_haptics {
 
@@ -76,13 +76,14 @@ std::size_t appendSphereMarkers(const ClodSphereSet& set, const std::vector<std:
     ++written;
     a = b;
   }
-  for (std::size_t k = written; k < previousCount; ++k) out.markers.push_back(deleteMarker(ns, static_cast<int>(k), header));
+  for (std::size_t k = written; k < previousCount; ++k)
+    out.markers.push_back(deleteMarker(ns, static_cast<int>(k), header));
   return written;
 }
 
 visualization_msgs::Marker pointerMarker(const Vec3& p, double radius, const std_msgs::Header& header,
-                                         const std_msgs::ColorRGBA& color) {
-  visualization_msgs::Marker m = baseMarker(marker_ns::kPointer, 0, visualization_msgs::Marker::SPHERE, header);
+                                         const std_msgs::ColorRGBA& color, const char* ns) {
+  visualization_msgs::Marker m = baseMarker(ns, 0, visualization_msgs::Marker::SPHERE, header);
   m.pose.position = toPoint(p);
   m.scale.x = m.scale.y = m.scale.z = 2.0 * radius;
   m.color = color;

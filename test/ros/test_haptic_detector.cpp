@@ -71,6 +71,12 @@ TEST(HapticDetectorDefaults, ConfigDetectorYamlStatesTheCodesDefaults) {
   EXPECT_EQ(yaml.at("detection_mode"), cfg.detection_mode);
   EXPECT_EQ(num(yaml, "stiffness"), cfg.stiffness);
   EXPECT_EQ(num(yaml, "max_force"), cfg.max_force);
+  EXPECT_EQ(yaml.at("force_model"), cfg.force_model);
+  EXPECT_EQ(cfg.force_model, "proxy");  // the shipped default
+  EXPECT_EQ(num(yaml, "damping"), cfg.damping);
+  EXPECT_EQ(num(yaml, "mu_static"), cfg.mu_static);
+  EXPECT_EQ(num(yaml, "mu_dynamic"), cfg.mu_dynamic);
+  EXPECT_EQ(yaml.at("force_shading"), str(cfg.force_shading));
   EXPECT_EQ(yaml.at("show_mesh"), str(cfg.show_mesh));
   EXPECT_EQ(yaml.at("show_spheres"), str(cfg.show_spheres));
   EXPECT_EQ(yaml.at("show_hit_spheres"), str(cfg.show_hit_spheres));

@@ -11,6 +11,7 @@
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <map>
@@ -67,6 +68,7 @@ class DetectorClient {
     ros::NodeHandle dnh(ns_);
     dnh.param("pointer_radius", radius_, 0.002);
     dnh.param("stiffness", stiffness_, 500.0);
+    proxyModel_ = dnh.param<std::string>("force_model", "proxy") == "proxy";
     posePub_ = nh_.advertise<geometry_msgs::PoseStamped>("/phantom/pose", 1000);
   }
 
@@ -121,7 +123,10 @@ class DetectorClient {
     return points;
   }
 
-  /** Checks a contact and force against the brute-force reference for a probe given in the mesh frame. */
+  /**
+   * Checks a contact and force against the brute-force reference for a probe given in the mesh frame. The force:
+   * penalty, stiffness * depth along the normal; proxy, the spring to the proxy, which is never inside the mesh.
+   */
   void expectMatchesReference(const Vec3& pMesh, const Contact& c, const geometry_msgs::WrenchStamped& f) const {
     const ContactResult ref = clod_haptics_test::streamReference(mesh_, pMesh, radius_, c.in_contact && c.inside);
     EXPECT_EQ(c.inside, ref.contact && ref.inside) << "probe " << pMesh.transpose();
@@ -138,10 +143,19 @@ class DetectorClient {
       EXPECT_LT((point - ref.point).norm(), 1e-7 * std::max(1.0, mesh_.diagonal())) << "probe " << pMesh.transpose();
       const Vec3 normal(c.normal.x, c.normal.y, c.normal.z);
       EXPECT_NEAR(normal.norm(), 1.0, 1e-9);
+      EXPECT_GT(c.triangle, -1);
+    }
+    if (proxyModel_) {
+      const Vec3 proxy(c.proxy.x, c.proxy.y, c.proxy.z);
+      EXPECT_FALSE(bruteForceQuery(mesh_, proxy, radius_ * (1.0 - 1e-6)).contact)
+          << "proxy inside: " << proxy.transpose();
+      const Vec3 expected = meshToPose_.linear() * (stiffness_ * (proxy - pMesh));
+      EXPECT_LT((forcePose - expected).norm(), 1e-9 * std::max(1.0, expected.norm()));
+    } else if (c.in_contact && ref.contact) {
       // Force: stiffness * depth along the normal, expressed in the pose frame.
+      const Vec3 normal(c.normal.x, c.normal.y, c.normal.z);
       const Vec3 expected = meshToPose_.linear() * (stiffness_ * c.depth * normal);
       EXPECT_LT((forcePose - expected).norm(), 1e-9 * std::max(1.0, expected.norm()));
-      EXPECT_GT(c.triangle, -1);
     } else {
       EXPECT_EQ(forcePose.norm(), 0.0);
     }
@@ -151,6 +165,7 @@ class DetectorClient {
   const TriangleMesh& mesh() const { return mesh_; }
   const Eigen::Isometry3d& meshToPose() const { return meshToPose_; }
   double radius() const { return radius_; }
+  bool proxyModel() const { return proxyModel_; }
   const std::string& ns() const { return ns_; }
 
  private:
@@ -170,6 +185,7 @@ class DetectorClient {
   Eigen::Isometry3d meshToPose_ = Eigen::Isometry3d::Identity();
   double radius_ = 0.002;
   double stiffness_ = 500.0;
+  bool proxyModel_ = true;  // the detector's force_model
   tf2_ros::StaticTransformBroadcaster staticBroadcaster_;
   ros::Publisher posePub_;
   std::mutex mutex_;  // the stamp counter
@@ -184,6 +200,14 @@ DetectorClient& client() {
 TEST(Detector, PosesInContactsOutMatchBruteForce) {
   DetectorClient& dc = client();
   ASSERT_TRUE(dc.waitReady()) << "no level or no connection from " << dc.ns();
+  {  // The stylus comes from free space: the proxy model starts its proxy at a pose that touches nothing.
+    const ros::Time stamp =
+        dc.publish(dc.meshToPose() * (dc.mesh().modelBounds().max() + Vec3::Constant(10.0 * dc.radius())));
+    Contact c;
+    geometry_msgs::WrenchStamped f;
+    ASSERT_TRUE(dc.waitAnswer(stamp, c, f));
+    EXPECT_FALSE(c.in_contact);
+  }
   const auto points = dc.probes(240, 60, 11);
   std::size_t touching = 0, free = 0;
   for (const Vec3& pMesh : points) {
@@ -515,6 +539,50 @@ class MarkerScene {
 };
 
 std::pair<std::string, int> key(const std::string& ns) { return {ns, 0}; }
+
+// With force_model proxy, ~proxy carries the proxy of each answer (the Contact's proxy field), and a pose pushed
+// through the surface leaves the proxy outside on the side it came from.
+TEST(Detector, ProxyPoseIsPublishedBesideTheContact) {
+  DetectorClient& dc = client();
+  if (!dc.proxyModel()) GTEST_SKIP() << "force_model penalty";
+  ASSERT_TRUE(dc.waitReady());
+  std::mutex mutex;
+  std::map<ros::Time, geometry_msgs::PoseStamped> proxies;
+  ros::NodeHandle nh;
+  ros::Subscriber sub = nh.subscribe<geometry_msgs::PoseStamped>(dc.ns() + "/proxy", 100,
+                                                                 [&](const geometry_msgs::PoseStamped::ConstPtr& msg) {
+                                                                   std::lock_guard<std::mutex> lock(mutex);
+                                                                   proxies[msg->header.stamp] = *msg;
+                                                                 });
+  ASSERT_TRUE(clod_haptics_test::waitUntil([&] { return sub.getNumPublishers() > 0; }, 10.0, 0.01));
+  // From free space straight into the mesh: the nearest surface point of a point far outside, then 1.5 r past it.
+  const Vec3 outside = dc.mesh().modelBounds().max() + Vec3::Constant(10.0 * dc.radius());
+  const ContactResult near = bruteForceQuery(dc.mesh(), outside, 1e9);
+  const Vec3 in = near.point - near.normal * 1.5 * dc.radius();
+  for (int i = -10; i <= 20; ++i) {  // ten poses outside first: the proxy comes round from wherever it was
+    const Vec3 pMesh = outside + (in - outside) * (std::max(i, 0) / 20.0);
+    const ros::Time stamp = dc.publish(dc.meshToPose() * pMesh);
+    Contact c;
+    geometry_msgs::WrenchStamped f;
+    ASSERT_TRUE(dc.waitAnswer(stamp, c, f));
+    ASSERT_TRUE(clod_haptics_test::waitUntil(
+        [&] {
+          std::lock_guard<std::mutex> lock(mutex);
+          return proxies.count(stamp) > 0;
+        },
+        5.0, 0.001));
+    std::lock_guard<std::mutex> lock(mutex);
+    const geometry_msgs::Point& q = proxies[stamp].pose.position;
+    EXPECT_EQ(q.x, c.proxy.x);
+    EXPECT_EQ(q.y, c.proxy.y);
+    EXPECT_EQ(q.z, c.proxy.z);
+    dc.expectMatchesReference(pMesh, c, f);
+    if (i == 20) {  // the pointer is 1.5 r inside; the proxy rests on the surface, r out along the normal
+      const Vec3 proxy(q.x, q.y, q.z);
+      EXPECT_LT((proxy - (near.point + near.normal * dc.radius())).norm(), 1e-6 * dc.radius());
+    }
+  }
+}
 
 TEST(Detector, MarkersShowTheMeshTheLevelTheHitSpheresAndTheContact) {
   DetectorClient& dc = client();

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -214,6 +215,22 @@ class CellGrid {
       key |= static_cast<std::uint64_t>(q) << (k * kBits);  // truncation: floor for q >= 0
     }
     return key;
+  }
+  /**
+   * \brief Integer coordinates of the cell holding p along each axis (keyOf's floor), clamped to
+   * [-1, cells on the axis]: what a walk over a box of cells needs to enumerate them with keyAt().
+   */
+  void cellCoordinates(const Vec3& p, std::int64_t out[3]) const noexcept {
+    for (int k = 0; k < 3; ++k) {
+      const double q = std::floor((p[k] - origin_[k]) * inv_);
+      out[k] = q < 0.0 ? -1 : q >= static_cast<double>(dims_[k]) ? dims_[k] : static_cast<std::int64_t>(q);
+    }
+  }
+  /** \brief Key of the cell at integer coordinates (cellCoordinates), or kOutside beyond the grid. */
+  std::uint64_t keyAt(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept {
+    if (x < 0 || y < 0 || z < 0 || x >= dims_[0] || y >= dims_[1] || z >= dims_[2]) return kOutside;
+    return static_cast<std::uint64_t>(x) | static_cast<std::uint64_t>(y) << kBits |
+           static_cast<std::uint64_t>(z) << (2 * kBits);
   }
   /** \brief The index entry of the cell of a key, or null when no triangle is near it. */
   const CellRef* find(std::uint64_t key) const noexcept {

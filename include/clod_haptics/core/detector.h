@@ -120,6 +120,8 @@ class ClodDetector {
   std::size_t bytes() const noexcept;
   /** \brief The largest pointer radius the grid serves (0 without a grid): larger radii take the tree over the mesh. */
   double gridRadius() const noexcept { return grid_.empty() ? 0.0 : grid_.radius(); }
+  /** \brief The grid of FastLevel::Grid (empty otherwise), for queries that walk its cells (SweptSphereQuery). */
+  const CellGrid& grid() const noexcept { return grid_; }
   /**
    * \brief A number unique to this detector within the process (a counter stamped at construction,
    * never reused, never 0): the identity a QueryCache keeps across level swaps.

@@ -28,7 +28,7 @@ ClodSphereSet fromMsg(const SphereSet& msg);
 
 /**
  * \brief Fills a contact message from a core result; pointer and radius are the query's, in the
- * mesh frame. Allocation-free apart from what the message already owns (header frame string).
+ * mesh frame (the proxy field is set to the pointer). Allocation-free apart from what the message already owns.
  */
 void toMsg(const ContactResult& result, const Vec3& pointer, double radius, Contact& msg);
 

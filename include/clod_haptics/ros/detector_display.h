@@ -31,6 +31,8 @@ struct DisplayFrame {
   std::uint64_t seq = 0;  ///< 0: no pose yet
   Vec3 pointer = Vec3::Zero();
   double radius = 0.0;
+  bool haveProxy = false;  ///< force_model proxy: the proxy is drawn beside the pointer
+  Vec3 proxy = Vec3::Zero();
   std::vector<SceneContact> contacts;
   std::vector<char> near;  ///< per object: the pointer reached its bound
   std::vector<Eigen::Isometry3d, Eigen::aligned_allocator<Eigen::Isometry3d>> poses;  ///< world-from-object

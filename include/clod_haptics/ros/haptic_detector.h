@@ -19,6 +19,7 @@
 
 #include "clod_haptics/DetectorConfig.h"
 #include "clod_haptics/core/contact.h"
+#include "clod_haptics/core/haptic_renderer.h"
 #include "clod_haptics/core/latency_histogram.h"
 #include "clod_haptics/core/scene.h"
 #include "clod_haptics/core/scene_assets.h"
@@ -72,8 +73,11 @@ struct DetectorParameters {
 
 /**
  * \brief The detector glue the nodelet and the node share: stylus pose in; per pose one Contact (~contact:
- * the deepest contact), one ContactArray (~contacts: every object touched) and one combined penalty force
- * (~force); a DetectorStatus heartbeat (~status) and markers (~markers) at display rate.
+ * the deepest contact), one ContactArray (~contacts: every object touched) and one force (~force): with
+ * force_model proxy the god-object proxy's spring (HapticRenderer over a SweptScene of the same objects, its
+ * centre on ~proxy while someone listens; it starts at the first pose that touches nothing, the penalty force
+ * answering until then), with penalty the combined penalty spring; a DetectorStatus
+ * heartbeat (~status) and markers (~markers, the proxy beside the pointer) at display rate.
  *
  * A single mesh (~mesh) is a scene of one object in ~frame_id; a scene file (~scene) gives several, on
  * static or moving tf2 frames (see SceneConfig). Either way one core SceneDetector answers.
@@ -116,9 +120,10 @@ class HapticDetector {
   /** \brief Every object's level, as the worker hands them to the pose thread. Immutable once published. */
   struct Levels {
     std::uint64_t id = 0;
-    std::vector<std::shared_ptr<const ClodDetector>> detectors;  ///< per object; null: brute force
-    std::string source;                                          ///< where the newest level came from
-    double readyMs = 0.0;                                        ///< how long it took
+    std::vector<std::shared_ptr<const ClodDetector>> detectors;   ///< per object; null: brute force
+    std::vector<std::shared_ptr<const SweptSphereQuery>> sweeps;  ///< per object: the proxy's query over that level
+    std::string source;                                           ///< where the newest level came from
+    double readyMs = 0.0;                                         ///< how long it took
   };
   /** \brief The worker's plan for one object: the distance it wants and how far its level has come. */
   struct LevelPlan {
@@ -145,8 +150,12 @@ class HapticDetector {
   bool isFinal(const ClodDetector& level) const;
   void askForNearLevels(const Vec3& p);
   void publishAnswer(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius,
-                     const Eigen::Isometry3d& sceneFromPose, const SceneQueryResult& out, std::int64_t detectionNs);
-  void keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts);
+                     const Eigen::Isometry3d& sceneFromPose, const SceneQueryResult& out, std::int64_t detectionNs,
+                     const ProxyTick* proxy);
+  void keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts, const ProxyTick* proxy);
+  void publishProxyPose(const geometry_msgs::PoseStamped& msg, const std_msgs::Header& header,
+                        const Eigen::Isometry3d& sceneFromPose, const Vec3& proxy);
+  bool renderProxy(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius, bool touching, ProxyTick& tick);
 
   // Levels (haptic_detector_levels.cpp).
   void onReconfigure(DetectorConfig& config, std::uint32_t level);
@@ -184,8 +193,14 @@ class HapticDetector {
   std::unique_ptr<SceneAssets> assets_;
   SceneDetector scene_;
   std::vector<ObjectState, Eigen::aligned_allocator<ObjectState>> objects_;
-  std::vector<SceneContact> contacts_;     // query output, one slot per object
-  std::vector<QueryCache> caches_;         // temporal coherence, one per object
+  std::vector<SceneContact> contacts_;                                // query output, one slot per object
+  std::vector<QueryCache> caches_;                                    // temporal coherence, one per object
+  SweptScene sweptScene_;                                             // the same objects for the proxy's swept queries
+  std::vector<std::shared_ptr<const SweptSphereQuery>> firstSweeps_;  // held so no swap frees them on the pose thread
+  HapticRenderer renderer_;                                           // the proxy (force_model proxy)
+  ros::Time lastStamp_;                    // the previous pose's stamp: the proxy's tick length
+  bool proxyActive_ = false;               // the last pose was rendered by the proxy
+  double proxyRadius_ = 0.0;               // the radius it was rendered with
   std::uint64_t adoptedId_ = 0;            // the Levels the scene uses (pose thread)
   std::atomic<std::uint64_t> adopted_{0};  // the same, for the thread that frees replaced Levels
 
@@ -193,6 +208,9 @@ class HapticDetector {
   std::atomic<double> radius_{0.002};
   std::atomic<double> stiffness_{400.0};
   std::atomic<double> maxForce_{0.0};
+  std::atomic<bool> proxyModel_{true};  // force_model: proxy (else penalty)
+  std::atomic<double> damping_{0.0}, muStatic_{0.0}, muDynamic_{0.0};
+  std::atomic<bool> forceShading_{false};
   std::atomic<int> mode_{static_cast<int>(DetectionMode::Exact)};
   std::atomic<double> requestedDistance_{0.0};
   bool configured_ = false;  // the first reconfigure call (start-up) keeps a scene's own distances
@@ -240,6 +258,7 @@ class HapticDetector {
   ros::Publisher contactPub_;
   ros::Publisher contactsPub_;
   ros::Publisher forcePub_;
+  ros::Publisher proxyPub_;
   ros::Publisher markerPub_;
   ros::Publisher statusPub_;
   ros::SteadyTimer displayTimer_;

@@ -23,6 +23,7 @@ constexpr const char* kHitSpheres = "hit_spheres";
 constexpr const char* kContact = "contact_point";
 constexpr const char* kNormal = "contact_normal";
 constexpr const char* kPointer = "pointer";
+constexpr const char* kProxy = "proxy";
 }  // namespace marker_ns
 
 /** \brief An RGBA colour message. */
@@ -62,9 +63,9 @@ std::size_t appendSphereMarkers(const ClodSphereSet& set, const std::vector<std:
                                 const std_msgs::Header& header, const std_msgs::ColorRGBA& color,
                                 std::size_t previousCount, visualization_msgs::MarkerArray& out);
 
-/** \brief The pointer as a SPHERE marker of diameter 2 * radius at p. */
+/** \brief The pointer (or, with ns marker_ns::kProxy, the proxy) as a SPHERE marker of diameter 2 * radius at p. */
 visualization_msgs::Marker pointerMarker(const Vec3& p, double radius, const std_msgs::Header& header,
-                                         const std_msgs::ColorRGBA& color);
+                                         const std_msgs::ColorRGBA& color, const char* ns = marker_ns::kPointer);
 
 /**
  * \brief The contact point (a small SPHERE) and the normal (an ARROW from the point, length

@@ -1,0 +1,376 @@
+// The proxy section of clod_bench (see proxy_bench.h). Every model in metres at the stylus scale.
+#include "proxy_bench.h"
+
+#include <x86intrin.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <random>
+#include <sstream>
+
+#include "bench_common.h"
+#include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/haptic_renderer.h"
+#include "clod_haptics/core/mesh_loader.h"
+#include "clod_haptics/core/probes.h"
+#include "clod_haptics/core/sphere_set.h"
+
+namespace clod_bench {
+namespace {
+
+using namespace clod_haptics;
+
+constexpr double kR = 0.002;          // pointer radius (the shipped launch file)
+constexpr double kStiffness = 400.0;  // N/m (the shipped launch file)
+constexpr double kDt = 1e-3;          // 1 kHz
+constexpr double kSharedSize = 0.15;  // shared meshes scaled from the unit cube to 15 cm
+constexpr double kSpeeds[] = {0.05, 0.5, 2.0};
+
+/** A model with everything both force models need. */
+struct Model {
+  std::string name, kind;
+  double sizeMm = 0.0;  // plate thickness or cylinder diameter; 0 for the shared meshes
+  std::shared_ptr<const TriangleMesh> mesh;
+  std::shared_ptr<const ClodDetector> detector;
+  SweptScene scene;
+};
+
+std::unique_ptr<Model> prepare(std::string name, std::string kind, double sizeMm, TriangleMesh mesh) {
+  auto m = std::make_unique<Model>();
+  m->name = std::move(name);
+  m->kind = std::move(kind);
+  m->sizeMm = sizeMm;
+  m->mesh = std::make_shared<const TriangleMesh>(std::move(mesh));
+  auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(m->mesh).build(0.003));  // the launch file's d
+  m->detector = std::make_shared<const ClodDetector>(m->mesh, set, FastLevel::Grid, kR);
+  m->scene.add(std::make_shared<const SweptSphereQuery>(m->mesh, m->detector), Eigen::Isometry3d::Identity());
+  return m;
+}
+
+// Several closed pieces in one mesh (overlapping where they join, as a modeller's antler would).
+TriangleMesh joined(const std::vector<TriangleMesh>& parts, const std::string& name) {
+  std::vector<Vec3> v;
+  std::vector<Triangle> t;
+  for (const TriangleMesh& p : parts) {
+    const std::uint32_t base = static_cast<std::uint32_t>(v.size());
+    for (const Vec3& x : p.vertices) v.push_back(p.toModel(x));
+    for (const Triangle& tri : p.triangles) t.push_back({tri[0] + base, tri[1] + base, tri[2] + base});
+  }
+  return makeMesh(std::move(v), std::move(t), name);
+}
+
+TriangleMesh transformed(const TriangleMesh& m, const Eigen::Isometry3d& pose, const std::string& name) {
+  std::vector<Vec3> v;
+  for (const Vec3& x : m.vertices) v.push_back(pose * m.toModel(x));
+  return makeMesh(std::move(v), m.triangles, name);
+}
+
+// A trunk of radius 1.5 mm along z and three branches of 1 mm leaning out of it.
+TriangleMesh antler() {
+  std::vector<TriangleMesh> parts{slicedCylinder(Vec3::Zero(), 0.0015, 0.06, 24, "trunk")};
+  const double heights[] = {-0.015, 0.0, 0.015}, angles[] = {0.7, 2.8, 4.9};
+  for (int i = 0; i < 3; ++i) {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() =
+        (Eigen::AngleAxisd(angles[i], Vec3::UnitZ()) * Eigen::AngleAxisd(0.8, Vec3::UnitX())).toRotationMatrix();
+    pose.translation() = Vec3(0, 0, heights[i]) + pose.linear() * Vec3(0, 0, 0.014);
+    parts.push_back(transformed(slicedCylinder(Vec3::Zero(), 0.001, 0.03, 16, "branch"), pose, "branch"));
+  }
+  return joined(parts, "antler");
+}
+
+std::vector<std::unique_ptr<Model>> thinModels() {
+  std::vector<std::unique_ptr<Model>> out;
+  for (double t : {0.5, 1.0, 2.0, 3.0, 5.0}) {  // square plates 60 mm wide, t thick (a four-sided prism)
+    std::ostringstream name;
+    name << "plate-" << t << "mm";
+    out.push_back(
+        prepare(name.str(), "plate", t, slicedCylinder(Vec3::Zero(), 0.03 * std::sqrt(2.0), t * 1e-3, 4, name.str())));
+  }
+  for (double d : {1.5, 3.0}) {  // legs: cylinders along z
+    std::ostringstream name;
+    name << "cylinder-" << d << "mm";
+    out.push_back(prepare(name.str(), "cylinder", d, slicedCylinder(Vec3::Zero(), 0.5e-3 * d, 0.06, 24, name.str())));
+  }
+  out.push_back(prepare("antler", "antler", 3.0, antler()));
+  return out;
+}
+
+std::unique_ptr<Model> sharedModel(const std::string& path) {
+  MeshLoadOptions options;
+  options.normalize = true;
+  const TriangleMesh unit = loadMesh(path, options);
+  std::vector<Vec3> v;
+  for (const Vec3& x : unit.vertices) v.push_back(unit.toModel(x) * kSharedSize);
+  const std::string name = std::filesystem::path(path).filename().string();
+  return prepare(name, "shared", 0.0, makeMesh(std::move(v), unit.triangles, name));
+}
+
+// Device points from a to b at speed, one per tick.
+std::vector<Vec3> line(const Vec3& a, const Vec3& b, double speed) {
+  const int n = std::max(1, static_cast<int>(std::ceil((b - a).norm() / (speed * kDt))));
+  std::vector<Vec3> out;
+  for (int i = 0; i <= n; ++i) out.push_back(a + (b - a) * (static_cast<double>(i) / n));
+  return out;
+}
+
+// Straight pushes through the part: plates along -z (tilted up to 30 degrees), cylinders across their axis
+// with an offset that makes contact, shared meshes along the inward normal of a random surface point.
+std::vector<std::vector<Vec3>> pushes(const Model& m, double speed, int runs, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<std::vector<Vec3>> out;
+  const std::vector<Vec3> surface =
+      m.kind == "shared" ? nearSurfaceProbes(*m.mesh, 20 * runs, 0.0, seed) : std::vector<Vec3>{};
+  for (std::size_t i = 0; out.size() < static_cast<std::size_t>(runs) && i < 20u * runs; ++i) {
+    Vec3 centre, dir;
+    if (m.kind == "plate") {
+      centre = Vec3(0.01 * u(rng), 0.01 * u(rng), 0.0);
+      dir = Vec3(0.5 * u(rng), 0.5 * u(rng), -1.0).normalized();
+    } else if (m.kind == "shared") {
+      const ContactResult c = bruteForceQuery(*m.mesh, surface[i % surface.size()], 1.0);
+      centre = c.point;
+      dir = -c.normal;
+      // The stylus comes from free space: a start inside or touching another part of the model is skipped.
+      if (bruteForceSignedQuery(*m.mesh, centre - 0.015 * dir, kR).contact) continue;
+    } else {
+      const double a = M_PI * u(rng), reach = 0.5e-3 * m.sizeMm + kR;
+      dir = Vec3(std::cos(a), std::sin(a), 0.0);
+      centre = Vec3(-dir.y(), dir.x(), 0.0) * (0.8 * reach * u(rng)) + Vec3(0, 0, 0.02 * u(rng));
+    }
+    out.push_back(line(centre - 0.015 * dir, centre + 0.015 * dir, speed));
+  }
+  return out;
+}
+
+/** The shipped stylus: r = 2 mm, 400 N/m, no friction, no clamp. */
+ProxyParameters stylus() {
+  ProxyParameters params;
+  params.radius = kR;
+  params.stiffness = kStiffness;
+  return params;
+}
+
+/** What one force model did over a run. */
+struct Outcome {
+  int pushingTicks = 0, contactTicks = 0, insideTicks = 0, popThroughs = 0;
+  double maxJump = 0.0;
+};
+
+// Whether the point the force pulls the stylus to (device + F / k: the proxy, or for the penalty model the
+// surface point pushed out by r) went through the part between two ticks: a sphere of r / 2 swept between
+// the two meets the mesh (one sliding along the surface stays r away from it).
+bool crossed(const Model& m, const Vec3& from, const Vec3& to) {
+  if (from == to) return false;
+  SceneSweptContact c;
+  m.scene.sweep(from, to, 0.5 * kR, c);
+  return c.contact.hit;
+}
+
+// The forces a model renders over a path (and, for the proxy, whether it ended a tick inside the mesh).
+Outcome run(const Model& m, const std::vector<Vec3>& path, bool proxy) {
+  Outcome o;
+  HapticRenderer renderer(stylus());
+  QueryCache cache;
+  ContactResult c;
+  ProxyTick tick;
+  Vec3 last = Vec3::Zero();
+  for (std::size_t i = 0; i < path.size(); ++i) {
+    Vec3 f;
+    if (proxy) {
+      renderer.update(m.scene, path[i], kDt, tick);
+      f = tick.force;
+      m.detector->query(tick.proxy, kR * (1.0 - 1e-9), DetectionMode::Exact, c);  // exact: ends inside?
+      o.insideTicks += c.contact;
+    } else {
+      m.detector->query(path[i], kR, DetectionMode::Exact, c, &cache);
+      f = penaltyForce(c, kStiffness);
+    }
+    const Vec3 motion = path.back() - path.front();
+    o.pushingTicks += f.dot(motion) > 1e-9;
+    o.contactTicks += f.squaredNorm() > 0.0;
+    if (i > 0) {
+      o.maxJump = std::max(o.maxJump, (f - last).norm());
+      o.popThroughs += crossed(m, path[i - 1] + last / kStiffness, path[i] + f / kStiffness);
+    }
+    last = f;
+  }
+  return o;
+}
+
+std::string loadAverage() {
+  std::ifstream in("/proc/loadavg");
+  std::string a, b, c;
+  in >> a >> b >> c;
+  return a + " " + b + " " + c;
+}
+
+std::string num(double v) {
+  std::ostringstream o;
+  o.precision(5);
+  o << v;
+  return o.str();
+}
+
+/** The thin-part table: both force models on every model and speed. */
+void popThroughs(const std::vector<std::unique_ptr<Model>>& models, int runs, std::ofstream& csv, std::ostream& md) {
+  md << "\n| model | speed m/s | runs | force model | pop-throughs | runs with one | ticks pushing along the motion | "
+        "max force jump N | proxy inside ticks |\n|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& m : models) {
+    for (double speed : kSpeeds) {
+      const auto paths = pushes(*m, speed, runs, 7);
+      for (bool proxy : {false, true}) {
+        Outcome total;
+        int runsPopped = 0;
+        for (const auto& p : paths) {
+          const Outcome o = run(*m, p, proxy);
+          runsPopped += o.popThroughs > 0;
+          total.popThroughs += o.popThroughs;
+          total.pushingTicks += o.pushingTicks;
+          total.contactTicks += o.contactTicks;
+          total.insideTicks += o.insideTicks;
+          total.maxJump = std::max(total.maxJump, o.maxJump);
+        }
+        const char* name = proxy ? "proxy" : "penalty";
+        csv << m->name << "," << m->kind << "," << m->sizeMm << "," << speed << "," << paths.size() << "," << name
+            << "," << total.popThroughs << "," << runsPopped << "," << total.pushingTicks << "," << num(total.maxJump)
+            << "," << total.insideTicks << "," << total.contactTicks << "\n";
+        md << "| " << m->name << " | " << speed << " | " << paths.size() << " | " << name << " | " << total.popThroughs
+           << " | " << runsPopped << " | " << total.pushingTicks << " | " << num(total.maxJump) << " | "
+           << (proxy ? std::to_string(total.insideTicks) : "") << " |\n";
+      }
+    }
+    std::cout << "  proxy: " << m->name << " pop-throughs measured\n" << std::flush;
+  }
+}
+
+/** Per-tick times (ns) of f over the device path, each tick alone between fenced time-stamp reads. */
+std::vector<float> timeTicks(const std::vector<Vec3>& path, const std::function<void(const Vec3&)>& f) {
+  std::vector<float> ns;
+  ns.reserve(path.size());
+  for (const Vec3& p : path) {
+    _mm_lfence();
+    const std::uint64_t a = __rdtsc();
+    _mm_lfence();
+    f(p);
+    _mm_lfence();
+    const std::uint64_t b = __rdtsc();
+    _mm_lfence();
+    ns.push_back(
+        static_cast<float>(std::max(0.0, (static_cast<double>(b - a) - Clock::overheadTicks) * Clock::nsPerTick)));
+  }
+  return ns;
+}
+
+struct Summary {
+  double median = 0, p99 = 0, max = 0, mean = 0;
+};
+Summary summarise(std::vector<float> v) {
+  Summary s;
+  if (v.empty()) return s;
+  std::sort(v.begin(), v.end());
+  double sum = 0;
+  for (float x : v) sum += x;
+  s.mean = sum / v.size();
+  s.median = v[v.size() / 2];
+  s.p99 = v[std::min(v.size() - 1, static_cast<std::size_t>(0.99 * v.size()))];
+  s.max = v.back();
+  return s;
+}
+
+/** The cost table: one point query, the penalty model and the proxy over the same device path. */
+void costs(const Model& m, const std::string& pathName, const std::vector<Vec3>& path, std::ofstream& csv,
+           std::ostream& md) {
+  ContactResult c;
+  QueryCache cache;
+  HapticRenderer renderer(stylus());
+  ProxyTick tick;
+  Vec3 sink = Vec3::Zero();
+  std::uint64_t sweeps = 0;
+  const std::pair<const char*, std::function<void(const Vec3&)>> contenders[] = {
+      {"point-query",
+       [&](const Vec3& p) {
+         m.detector->query(p, kR, DetectionMode::Exact, c);
+         sink += c.point;
+       }},
+      {"penalty",
+       [&](const Vec3& p) {
+         m.detector->query(p, kR, DetectionMode::Exact, c, &cache);
+         sink += penaltyForce(c, kStiffness);
+       }},
+      {"proxy", [&](const Vec3& p) {
+         renderer.update(m.scene, p, kDt, tick);
+         sink += tick.force;
+         sweeps += tick.sweeps;
+       }}};
+  for (const auto& contender : contenders) {
+    timeTicks(std::vector<Vec3>(path.begin(), path.begin() + std::min<std::size_t>(path.size(), 200)),
+              contender.second);
+    renderer.reset(path.front());
+    cache = QueryCache();
+    sweeps = 0;
+    const Summary s = summarise(timeTicks(path, contender.second));
+    const double perTick = static_cast<double>(sweeps) / path.size();
+    csv << m.name << "," << m.mesh->size() << "," << pathName << "," << path.size() << "," << contender.first << ","
+        << num(s.median) << "," << num(s.p99) << "," << num(s.max) << "," << num(s.mean) << "," << num(perTick) << "\n";
+    md << "| " << m.name << " | " << m.mesh->size() << " | " << pathName << " | " << contender.first << " | "
+       << num(s.median) << " | " << num(s.p99) << " | " << num(s.max) << " |\n";
+  }
+  if (!sink.allFinite()) std::cout << "  (non-finite sink)\n";
+}
+
+}  // namespace
+
+void proxySection(const std::vector<std::string>& sharedPaths, const std::string& outDir, bool quick,
+                  const std::vector<Vec3>& trajectory) {
+  const int runs = quick ? 4 : 12;
+  std::ofstream thin(outDir + "/proxy_thin.csv"), cost(outDir + "/proxy_cost.csv"), md(outDir + "/proxy.md");
+  thin << "model,kind,size_mm,speed_mps,runs,force_model,pop_throughs,runs_popped,ticks_pushing_along_motion,"
+          "max_force_jump_n,proxy_inside_ticks,force_ticks\n";
+  cost << "model,triangles,path,ticks,contender,median_ns,p99_ns,max_ns,mean_ns,sweeps_per_tick\n";
+  md << "# Proxy section: god-object proxy beside the penalty model\n\nr = 2 mm, 400 N/m, 1 kHz; shared meshes scaled "
+        "to 15 cm; pushes 30 mm long through the part ("
+     << runs
+     << " per model and speed, from free space). A "
+        "pop-through: the point the force pulls the stylus to (the proxy; for the penalty model the nearest surface "
+        "point pushed out by r) passes through the part between two ticks (a sphere of r/2 swept between the two "
+        "meets the mesh). Ticks pushing along the motion (the issue's measure) also count a proxy that slides round "
+        "a thin cylinder and pulls the stylus on beside it.\n";
+  const std::string loadBefore = loadAverage();
+  const auto started = std::chrono::steady_clock::now();
+  std::vector<std::unique_ptr<Model>> models = thinModels();
+  for (const std::string& path : sharedPaths) {
+    try {
+      models.push_back(sharedModel(path));
+    } catch (const std::exception& e) {
+      std::cout << "  proxy: skip " << path << ": " << e.what() << "\n";
+    }
+  }
+  popThroughs(models, runs, thin, md);
+  md << "\n## Cost per tick (ns)\n\n| model | triangles | path | contender | median | p99 | max "
+        "|\n|---|---|---|---|---|---|---|\n";
+  for (const auto& m : models) {
+    if (m->kind != "shared" && m->name != "antler" && m->name != "plate-0.5mm") continue;
+    for (double speed : kSpeeds) {
+      std::vector<Vec3> all;
+      for (const auto& p : pushes(*m, speed, runs, 11)) all.insert(all.end(), p.begin(), p.end());
+      costs(*m, "pushes-" + num(speed) + "mps", all, cost, md);
+    }
+    if (m->kind == "shared" && !trajectory.empty()) costs(*m, "trajectory", placeOver(trajectory, *m->mesh), cost, md);
+    std::cout << "  proxy: " << m->name << " costs measured\n" << std::flush;
+  }
+  md << "\nRun: " << (quick ? "quick" : "full") << ", "
+     << std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count()
+     << " s, load average before " << loadBefore << ", after " << loadAverage()
+     << " (2 cores shared with other jobs: the p99 and max columns include preemption).\n";
+}
+
+}  // namespace clod_bench

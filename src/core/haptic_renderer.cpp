@@ -1,0 +1,200 @@
+#include "clod_haptics/core/haptic_renderer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace clod_haptics {
+namespace {
+
+constexpr int kMaxPlanes = 3;
+constexpr int kIterations = 6;  // sweeps per solve: one free move, or up to three planes and the slides between
+
+}  // namespace
+
+/** The constraint planes of one solve (unit normals through the proxy) and where the first contact held it. */
+struct HapticRenderer::Planes {
+  Vec3 n[kMaxPlanes];
+  int count = 0;
+  Vec3 anchor = Vec3::Zero();  // the proxy at the first contact of the solve
+  /** Adds a plane unless one with the same normal is active; a fourth replaces the oldest. */
+  void add(const Vec3& normal) {
+    for (int i = 0; i < count; ++i)
+      if (n[i].dot(normal) > 1.0 - 1e-12) return;
+    if (count == kMaxPlanes) {
+      n[0] = n[1];
+      n[1] = n[2];
+      count = kMaxPlanes - 1;
+    }
+    n[count++] = normal;
+  }
+};
+
+namespace {
+
+// The point nearest target on the planes of mask (n_i . (x - p) = skin for i in mask), or false when they
+// do not meet in one such point (parallel normals): x = target - sum_j lambda_j n_j, G lambda = c with G the
+// Gram matrix of the active normals, solved in closed form (at most 3 x 3, by Cramer's rule).
+bool projectOnto(const Vec3& target, const Vec3& p, const Vec3* n, unsigned mask, double skin, Vec3& x) {
+  const Vec3* m[kMaxPlanes];
+  int k = 0;
+  for (int i = 0; i < kMaxPlanes; ++i)
+    if (mask & (1u << i)) m[k++] = &n[i];
+  x = target;
+  if (k == 0) return true;
+  double c[kMaxPlanes];
+  for (int i = 0; i < k; ++i) c[i] = m[i]->dot(target - p) - skin;
+  if (k == 1) {
+    x -= c[0] * *m[0];  // unit normals: G = 1
+    return true;
+  }
+  if (k == 2) {
+    const double g = m[0]->dot(*m[1]), det = 1.0 - g * g;
+    if (!(det > 1e-12)) return false;
+    x -= ((c[0] - g * c[1]) / det) * *m[0] + ((c[1] - g * c[0]) / det) * *m[1];
+    return true;
+  }
+  // Three planes: their one common point, solved directly: x with m_i . (x - p) = skin.
+  const Vec3 a = m[1]->cross(*m[2]), b = m[2]->cross(*m[0]), e = m[0]->cross(*m[1]);
+  const double det = m[0]->dot(a);
+  if (!(std::abs(det) > 1e-12)) return false;
+  x = p + (skin * (a + b + e)) / det;
+  return x.allFinite();
+}
+
+// The point nearest target that keeps at least skin above every plane through p: target itself when it
+// does, else the projection onto the subset of planes active at the optimum, found by trying every subset
+// (at most seven) and keeping the nearest feasible answer. p itself when none is feasible.
+Vec3 constrain(const Vec3& target, const Vec3& p, const Vec3* n, int count, double skin) {
+  auto feasible = [&](const Vec3& x) {
+    for (int i = 0; i < count; ++i)
+      if (!(n[i].dot(x - p) >= 0.5 * skin)) return false;
+    return true;
+  };
+  if (feasible(target)) return target;
+  Vec3 best = p;
+  double bestDistance = std::numeric_limits<double>::infinity();
+  for (unsigned mask = 1; mask < (1u << count); ++mask) {
+    Vec3 x;
+    if (!projectOnto(target, p, n, mask, skin, x) || !feasible(x)) continue;
+    const double distance = (x - target).squaredNorm();
+    if (distance < bestDistance) {
+      best = x;
+      bestDistance = distance;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+void HapticRenderer::setParameters(const ProxyParameters& parameters) {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0.0 ? v : 0.0; };
+  parameters_ = parameters;
+  parameters_.radius = positive(parameters.radius);
+  parameters_.stiffness = positive(parameters.stiffness);
+  parameters_.damping = positive(parameters.damping);
+  parameters_.maxForce = positive(parameters.maxForce);
+  parameters_.muStatic = positive(parameters.muStatic);
+  parameters_.muDynamic = std::min(positive(parameters.muDynamic), parameters_.muStatic);
+}
+
+void HapticRenderer::reset(const Vec3& position) {
+  proxy_ = lastProxy_ = lastDevice_ = position;
+  started_ = true;
+  sliding_ = false;
+}
+
+Vec3 HapticRenderer::solve(const SweptScene& scene, const Vec3& from, const Vec3& target, Planes& planes,
+                           ProxyTick& out) {
+  const double r = parameters_.radius;
+  // The goal keeps this much above each plane: a slide then moves away from the surface it rests on by a
+  // hair instead of into it by rounding, and the swept query lets it go.
+  const double skin = 1e-9 * r + 1e-15 * from.cwiseAbs().maxCoeff();
+  Vec3 p = from, goal = target;
+  SceneSweptContact hit;
+  for (int i = 0; i < kIterations; ++i) {
+    if (goal == p) break;
+    scene.sweep(p, goal, r, hit, hint_.object, hint_.triangle);
+    ++out.sweeps;
+    out.trianglesTested += hit.contact.trianglesTested;
+    if (!hit.contact.hit) return goal;
+    hint_ = {hit.object, hit.contact.triangle};
+    p = p + hit.contact.toi * (goal - p);
+    if (planes.count == 0) planes.anchor = p;
+    if (!out.contact) {
+      out.contact = true;
+      out.point = hit.contact.point;
+      out.normal = hit.contact.normal;
+      out.object = hit.object;
+      out.triangle = hit.contact.triangle;
+    }
+    planes.add(hit.contact.normal);
+    goal = constrain(target, p, planes.n, planes.count, skin);
+  }
+  return p;
+}
+
+Vec3 HapticRenderer::friction(const SweptScene& scene, const Vec3& start, const Vec3& device, const Vec3& free,
+                              const Vec3& normal, ProxyTick& out) {
+  const Vec3 v = start - device;
+  const double pressing = v.dot(normal);  // the normal force over the stiffness
+  if (!(pressing > 0.0)) {
+    sliding_ = false;
+    return free;
+  }
+  const Vec3 tangential = v - pressing * normal;
+  const double length = tangential.norm();
+  const double mu = sliding_ ? parameters_.muDynamic : parameters_.muStatic;
+  if (length <= mu * pressing) {  // inside the friction cone: the proxy stays where it touched
+    sliding_ = false;
+    out.sticking = true;
+    return start;
+  }
+  // Sliding: the proxy follows to the dynamic cone's edge, lagging the device by muDynamic times the push.
+  sliding_ = true;
+  out.sliding = true;
+  const Vec3 goal = device + pressing * normal + tangential * (parameters_.muDynamic * pressing / length);
+  Planes planes;
+  return solve(scene, start, goal, planes, out);
+}
+
+Vec3 HapticRenderer::force(const SweptScene& scene, const Vec3& device, double dt, const ProxyTick& tick) const {
+  Vec3 f = parameters_.stiffness * (tick.proxy - device);
+  if (parameters_.damping > 0.0 && dt > 0.0 && tick.contact)
+    f += parameters_.damping * ((tick.proxy - lastProxy_) - (device - lastDevice_)) / dt;
+  if (parameters_.forceShading && tick.contact && tick.planes == 1 && tick.object >= 0) {
+    const double push = f.dot(tick.normal);
+    if (push > 0.0)
+      f +=
+          push * (scene.shadedNormal(static_cast<std::uint32_t>(tick.object), tick.triangle, tick.point) - tick.normal);
+  }
+  const double magnitude = f.norm();
+  if (parameters_.maxForce > 0.0 && magnitude > parameters_.maxForce) f *= parameters_.maxForce / magnitude;
+  return f.allFinite() ? f : Vec3::Zero();
+}
+
+void HapticRenderer::update(const SweptScene& scene, const Vec3& device, double dt, ProxyTick& out) noexcept {
+  out = ProxyTick{};
+  out.device = device;
+  out.proxy = proxy_;
+  if (!device.allFinite()) return;
+  if (!started_) reset(device);
+  Planes planes;
+  Vec3 p = solve(scene, proxy_, device, planes, out);
+  out.planes = static_cast<std::uint32_t>(planes.count);
+  if (out.contact && parameters_.muStatic > 0.0) {
+    Vec3 normal = Vec3::Zero();
+    for (int i = 0; i < planes.count; ++i) normal += planes.n[i];
+    if (normal.norm() > 1e-9) p = friction(scene, planes.anchor, device, p, normal.normalized(), out);
+  } else {
+    sliding_ = false;
+  }
+  proxy_ = p;
+  out.proxy = p;
+  out.force = force(scene, device, dt, out);
+  lastProxy_ = p;
+  lastDevice_ = device;
+}
+
+}  // namespace clod_haptics

@@ -1,0 +1,401 @@
+#include "clod_haptics/core/swept_query.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "clod_haptics/core/contact.h"
+#include "clod_haptics/core/errors.h"
+
+namespace clod_haptics {
+namespace {
+
+constexpr double kNever = std::numeric_limits<double>::infinity();
+
+// First t in [0, 1] at which the centre a + t d enters the sphere of radius R around v, the centre
+// starting outside it (m = a - v). C / (-B + sqrt(disc)) is the smaller root without cancellation.
+inline double sphereEntry(const Vec3& m, const Vec3& d, double dd, double R) {
+  const double B = m.dot(d);
+  if (!(B < 0.0)) return kNever;  // moving away from v, or not at all
+  const double C = m.squaredNorm() - R * R;
+  const double disc = B * B - dd * C;
+  if (disc < 0.0) return kNever;
+  return std::max(0.0, C / (-B + std::sqrt(disc)));
+}
+
+// First t at which the centre comes within R of the edge e0 -> e1 through its side (the cylinder
+// around the segment); the ends are the vertex spheres' business. |(m + t d) x e|^2 = R^2 |e|^2 is
+// A t^2 + 2 B t + C = 0.
+inline double edgeEntry(const Vec3& e0, const Vec3& e1, const Vec3& a, const Vec3& d, double dd, double R) {
+  const Vec3 e = e1 - e0, m = a - e0;
+  const double ee = e.squaredNorm();
+  if (!(ee > 0.0)) return kNever;
+  const double md = m.dot(e), nd = d.dot(e);
+  const double A = ee * dd - nd * nd;
+  const double B = ee * m.dot(d) - md * nd;
+  const double C = ee * (m.squaredNorm() - R * R) - md * md;
+  if (C <= 0.0) {  // already within R of the edge's line: within the side only by rounding, then now
+    return B < 0.0 && md >= 0.0 && md <= ee ? 0.0 : kNever;
+  }
+  if (!(B < 0.0) || !(A > 0.0)) return kNever;  // moving away from the line, or along it
+  const double disc = B * B - A * C;
+  if (disc < 0.0) return kNever;
+  const double t = C / (-B + std::sqrt(disc));
+  const double s = md + t * nd;  // along the edge, times ee
+  return s >= 0.0 && s <= ee ? t : kNever;
+}
+
+// First t at which the centre reaches the plane of the face at distance R with its projection inside
+// the triangle (n: the unnormalised normal, nn its squared length).
+inline double faceEntry(const Vec3& v0, const Vec3& v1, const Vec3& v2, const Vec3& a, const Vec3& d, double R) {
+  const Vec3 n = (v1 - v0).cross(v2 - v0);
+  const double nn = n.squaredNorm();
+  if (!(nn > 0.0)) return kNever;
+  const double s0 = n.dot(a - v0), sd = n.dot(d), Rn = R * std::sqrt(nn);
+  double t;
+  if (s0 > Rn && sd < 0.0) {
+    t = (s0 - Rn) / -sd;
+  } else if (s0 < -Rn && sd > 0.0) {
+    t = (-s0 - Rn) / sd;
+  } else if (std::abs(s0) <= Rn && s0 * sd < 0.0) {
+    t = 0.0;  // within R of the plane by rounding only (the caller saw the centre farther): touching now
+  } else {
+    return kNever;
+  }
+  if (t > 1.0) return kNever;
+  const Vec3 c = a + t * d;
+  const bool inside = (v1 - v0).cross(c - v0).dot(n) >= 0.0 && (v2 - v1).cross(c - v1).dot(n) >= 0.0 &&
+                      (v0 - v2).cross(c - v2).dot(n) >= 0.0;
+  return inside ? t : kNever;
+}
+
+// The ball around a triangle the capsule test uses: its centroid and the distance to its farthest corner.
+inline void boundingBall(const Vec3& v0, const Vec3& v1, const Vec3& v2, Vec3& c, double& rho) {
+  c = (v0 + v1 + v2) * (1.0 / 3.0);
+  rho = std::sqrt(std::max({(v0 - c).squaredNorm(), (v1 - c).squaredNorm(), (v2 - c).squaredNorm()}));
+}
+
+// Whether the capsule (a -> a + tMax d, radius R) cannot reach the ball (c, rho) around a triangle.
+inline bool capsuleMissesBall(const Vec3& c, double rho, const Vec3& a, const Vec3& d, double dd, double R,
+                              double tMax) {
+  const double t = dd > 0.0 ? std::clamp((c - a).dot(d) / dd, 0.0, std::min(1.0, tMax)) : 0.0;
+  const double reach = (rho + R) * (1.0 + 1e-12);
+  return (a + t * d - c).squaredNorm() > reach * reach;
+}
+
+// sweptSphereTriangle after the capsule test.
+bool exactSweep(const Vec3& a, const Vec3& d, double dd, double R, const Vec3& v0, const Vec3& v1, const Vec3& v2,
+                double& toi, bool& startInContact, double tMax) {
+  const Vec3 w = a - closestPointOnTriangle(a, v0, v1, v2);
+  const double f2 = w.squaredNorm();
+  if (f2 <= R * R) {
+    // In contact at a: a hit now only for a point query, a centre on the triangle, or a motion closer.
+    startInContact = true;
+    toi = 0.0;
+    const double onTriangle = 1e-9 * R;  // closer than this the side is rounding: blocked either way
+    return dd == 0.0 || f2 <= onTriangle * onTriangle || w.dot(d) < 0.0;
+  }
+  if (dd == 0.0) return false;
+  double t = faceEntry(v0, v1, v2, a, d, R);
+  t = std::min(t, edgeEntry(v0, v1, a, d, dd, R));
+  t = std::min(t, edgeEntry(v1, v2, a, d, dd, R));
+  t = std::min(t, edgeEntry(v2, v0, a, d, dd, R));
+  t = std::min(t, sphereEntry(a - v0, d, dd, R));
+  t = std::min(t, sphereEntry(a - v1, d, dd, R));
+  t = std::min(t, sphereEntry(a - v2, d, dd, R));
+  if (!(t <= std::min(1.0, tMax))) return false;
+  startInContact = false;
+  toi = t;
+  return true;
+}
+
+}  // namespace
+
+bool sweptSphereTriangle(const Vec3& a, const Vec3& d, double R, const Vec3& v0, const Vec3& v1, const Vec3& v2,
+                         double& toi, bool& startInContact, double tMax) noexcept {
+  const double dd = d.squaredNorm();
+  if (!(tMax >= 0.0)) return false;
+  Vec3 c;
+  double rho;
+  boundingBall(v0, v1, v2, c, rho);
+  if (capsuleMissesBall(c, rho, a, d, dd, R, tMax)) return false;
+  return exactSweep(a, d, dd, R, v0, v1, v2, toi, startInContact, tMax);
+}
+
+/**
+ * The smallest time of impact so far, ties to the lowest triangle; and the triangles tested lately, by their
+ * low bits (a triangle is listed by most of the cells around it, and a sweep meets several): a second test of
+ * one would answer the same, as the best time only decreases.
+ */
+struct SweptSphereQuery::Best {
+  double toi = kNever;
+  std::int32_t triangle = -1;
+  bool start = false;
+  std::uint32_t tested = 0;
+  std::uint32_t seen[64];
+  Best() { std::fill(seen, seen + 64, ~0u); }
+  bool firstTime(std::uint32_t t) {
+    std::uint32_t& slot = seen[t & 63];
+    if (slot == t) return false;
+    slot = t;
+    return true;
+  }
+  void offer(std::uint32_t t, double toiT, bool startT) {
+    if (toiT < toi || (toiT == toi && static_cast<std::int32_t>(t) < triangle)) {
+      toi = toiT;
+      triangle = static_cast<std::int32_t>(t);
+      start = startT;
+    }
+  }
+};
+
+namespace {
+
+// Largest absolute coordinate of the sweep (the magnitude its rounding is relative to).
+double magnitudeOf(const Vec3& a, const Vec3& b) { return std::max(a.cwiseAbs().maxCoeff(), b.cwiseAbs().maxCoeff()); }
+
+// Point, normal and region of a contact at toi (a, d local; the answer in the model frame).
+void finish(const TriangleMesh& mesh, const Vec3& a, const Vec3& d, SweptContact& out) {
+  const Triangle& tri = mesh.triangles[static_cast<std::size_t>(out.triangle)];
+  const Vec3& v0 = mesh.vertices[tri[0]];
+  const Vec3& v1 = mesh.vertices[tri[1]];
+  const Vec3& v2 = mesh.vertices[tri[2]];
+  const Vec3 centre = out.toi >= 1.0 ? Vec3(a + d) : Vec3(a + out.toi * d);
+  const Vec3 point = closestPointOnTriangle(centre, v0, v1, v2, &out.region);
+  Vec3 normal = centre - point;
+  const double len = normal.norm();
+  if (len > 0.0) {
+    normal /= len;
+  } else {  // the centre on the triangle: the face's side the sweep comes from
+    normal = mesh.normals[static_cast<std::size_t>(out.triangle)];
+    if (normal.dot(d) > 0.0) normal = -normal;
+    if (!(normal.squaredNorm() > 0.0)) normal = d.squaredNorm() > 0.0 ? Vec3(-d.normalized()) : Vec3::UnitZ();
+  }
+  out.centre = mesh.toModel(centre);
+  out.point = mesh.toModel(point);
+  out.normal = normal;
+}
+
+}  // namespace
+
+SweptContact bruteForceSweep(const TriangleMesh& mesh, const Vec3& a, const Vec3& b, double r) {
+  SweptContact out;
+  if (!validPointer(a, r) || !b.allFinite()) return out;
+  const Vec3 la = mesh.toLocal(a), lb = mesh.toLocal(b), d = lb - la;
+  const double R = sweptRadiusMargin(r, magnitudeOf(la, lb));
+  double best = kNever;
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
+    double toi;
+    bool start = false;
+    ++out.trianglesTested;
+    if (sweptSphereTriangle(la, d, R, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), toi, start, best) &&
+        toi < best) {
+      best = toi;
+      out.triangle = static_cast<std::int32_t>(t);
+      out.startInContact = start;
+    }
+  }
+  if (out.triangle < 0) return out;
+  out.hit = true;
+  out.toi = best;
+  finish(mesh, la, d, out);
+  return out;
+}
+
+SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
+                                   std::shared_ptr<const ClodDetector> detector)
+    : mesh_(std::move(mesh)), detector_(std::move(detector)) {
+  if (!mesh_) throw InvalidParameter("SweptSphereQuery: null mesh");
+  if (detector_ && detector_->mesh() != mesh_) throw InvalidParameter("SweptSphereQuery: detector of another mesh");
+  if (detector_ && !detector_->grid().empty()) grid_ = &detector_->grid();
+  std::vector<Eigen::AlignedBox3d> boxes(mesh_->size());
+  records_.resize(13 * mesh_->size());
+  for (std::size_t t = 0; t < mesh_->size(); ++t) {
+    double* rec = records_.data() + 13 * t;
+    Vec3 c;
+    boundingBall(mesh_->vertex(t, 0), mesh_->vertex(t, 1), mesh_->vertex(t, 2), c, rec[3]);
+    for (int k = 0; k < 3; ++k) {
+      rec[k] = c[k];
+      for (int j = 0; j < 3; ++j) rec[4 + 3 * k + j] = mesh_->vertex(t, k)[j];
+      boxes[t].extend(mesh_->vertex(t, k));
+    }
+  }
+  const Eigen::AlignedBox3d bounds = mesh_->bounds();
+  const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());
+  buildBoxTree(boxes, 4, 1e-12 * std::max(magnitude, bounds.diagonal().norm()), nodes_, order_);
+}
+
+void SweptSphereQuery::testTriangle(std::uint32_t t, const Vec3& a, const Vec3& d, double R,
+                                    Best& best) const noexcept {
+  if (!best.firstTime(t)) return;
+  // One record of 13 doubles: the ball first (often all a test reads), then the corners.
+  const double* rec = records_.data() + 13 * static_cast<std::size_t>(t);
+  ++best.tested;
+  const double dd = d.squaredNorm();
+  if (capsuleMissesBall(Vec3(rec[0], rec[1], rec[2]), rec[3], a, d, dd, R, best.toi)) return;
+  double toi;
+  bool start = false;
+  if (exactSweep(a, d, dd, R, Vec3(rec[4], rec[5], rec[6]), Vec3(rec[7], rec[8], rec[9]),
+                 Vec3(rec[10], rec[11], rec[12]), toi, start, best.toi))
+    best.offer(t, toi, start);
+}
+
+void SweptSphereQuery::sweep(const Vec3& a, const Vec3& b, double r, SweptContact& out,
+                             std::int32_t hint) const noexcept {
+  out = SweptContact{};
+  if (!validPointer(a, r) || !b.allFinite()) return;
+  const Vec3 la = mesh_->toLocal(a), lb = mesh_->toLocal(b), d = lb - la;
+  const double R = sweptRadiusMargin(r, magnitudeOf(la, lb));
+  Best best;
+  // A likely first contact tested first: its time bounds the search from the start.
+  if (hint >= 0 && static_cast<std::size_t>(hint) < mesh_->size())
+    testTriangle(static_cast<std::uint32_t>(hint), la, d, R, best);
+  // The grid serves a sweep of up to a few thousand cells; a longer one takes the tree, which skips empty space.
+  if (grid_ != nullptr && r <= grid_->radius() && d.norm() <= 4096.0 * grid_->cellSize())
+    sweepGrid(la, d, R, best);
+  else
+    sweepTree(la, d, R, best);
+  out.trianglesTested = best.tested;
+  if (best.triangle < 0) return;
+  out.hit = true;
+  out.toi = best.toi;
+  out.triangle = best.triangle;
+  out.startInContact = best.start;
+  finish(*mesh_, la, d, out);
+}
+
+void SweptSphereQuery::sweepGrid(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept {
+  const CellGrid& grid = *grid_;
+  const double h = grid.cellSize();
+  const int pieces = std::max(1, static_cast<int>(std::ceil(d.norm() / h)));
+  // Covers the rounding of the pieces' ends and of the cell coordinates.
+  const double pad = 1e-9 * h + 1e-12 * magnitudeOf(a, a + d);
+  for (int k = 0; k < pieces; ++k) {
+    const double t0 = static_cast<double>(k) / pieces, t1 = static_cast<double>(k + 1) / pieces;
+    const Vec3 p0 = a + t0 * d, p1 = k + 1 == pieces ? Vec3(a + d) : Vec3(a + t1 * d);
+    // The cells the piece passes through, up to the best time so far (the candidates of a cell already reach
+    // every triangle within the grid radius of its points): recomputed when a contact shortens the piece.
+    std::int64_t lo[3], hi[3], start[3];
+    auto cellsOfPiece = [&]() {
+      const Vec3 end = best.toi >= t1 ? p1 : Vec3(a + std::max(t0, best.toi) * d);
+      grid.cellCoordinates(p0.cwiseMin(end) - Vec3::Constant(pad), lo);
+      grid.cellCoordinates(p0.cwiseMax(end) + Vec3::Constant(pad), hi);
+    };
+    cellsOfPiece();
+    // The start's cell first: a contact near the start, found early, shrinks the rest.
+    grid.cellCoordinates(p0, start);
+    const std::uint64_t first = grid.keyAt(start[0], start[1], start[2]);
+    if (first != CellGrid::kOutside) {
+      sweepCell(first, p0, p1, a, d, R, t0, t1, best);
+      cellsOfPiece();
+    }
+    const std::int64_t x0 = lo[0], x1 = hi[0], y0 = lo[1], y1 = hi[1], z0 = lo[2], z1 = hi[2];
+    for (std::int64_t z = z0; z <= z1; ++z)
+      for (std::int64_t y = y0; y <= y1; ++y)
+        for (std::int64_t x = x0; x <= x1; ++x) {
+          if (x < lo[0] || x > hi[0] || y < lo[1] || y > hi[1] || z < lo[2] || z > hi[2]) continue;
+          const std::uint64_t key = grid.keyAt(x, y, z);
+          if (key == CellGrid::kOutside || key == first) continue;
+          const double before = best.toi;
+          sweepCell(key, p0, p1, a, d, R, t0, t1, best);
+          if (best.toi < before) cellsOfPiece();
+        }
+    // Every contact at a time up to t1 has its centre in the pieces seen: the first one is known.
+    if (best.toi <= t1) return;
+  }
+}
+
+void SweptSphereQuery::sweepCell(std::uint64_t key, const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& d,
+                                 double R, double t0, double t1, Best& best) const noexcept {
+  const CellGrid& grid = *grid_;
+  const CellGrid::CellRef* ref = grid.find(key);
+  if (ref == nullptr) return;  // no triangle within the grid radius of this cell
+  if (best.toi < t0) return;   // every contact through this piece comes later
+  const CellGrid::Cell cell = grid.cell(*ref);
+  const Vec3 centre = grid.centreOf(key);
+  // The bounds hold for the piece up to the best time so far (a contact after it cannot win): its far end
+  // moves back each time a contact is found.
+  const Vec3 r0 = p0 - centre;
+  const double n0 = r0.norm();
+  Vec3 r1;
+  double n1 = 0.0, reach = 0.0, end = -1.0;
+  // The 8-bit directions' rounding (|u - stored| <= sqrt(3) / 254) grows with the distance from the centre.
+  const double slack = grid.slack(), along = 1.7320508075688772 / 254.0;
+  auto shrink = [&]() {
+    end = std::min(t1, best.toi);
+    r1 = (end >= t1 ? p1 : Vec3(a + end * d)) - centre;
+    n1 = r1.norm();
+    reach = std::max(n0, n1) + slack;
+  };
+  shrink();
+  const double unit = grid.distanceUnit();
+  for (std::uint32_t i = 0; i < cell.count; ++i) {
+    const CellGrid::Entry& e = cell.entries[i];
+    const double dc = e.distance * unit;
+    // distance(p, T) >= dc - |p - centre| on the whole piece (the farthest point is an end): sorted, so stop.
+    if (dc - reach > R) break;
+    // distance(p, T) >= dc + (p - centre) . u, linear along the piece: its smaller end bounds it.
+    const double u0 = (r0.x() * e.direction[0] + r0.y() * e.direction[1] + r0.z() * e.direction[2]) * (1.0 / 127.0);
+    const double u1 = (r1.x() * e.direction[0] + r1.y() * e.direction[1] + r1.z() * e.direction[2]) * (1.0 / 127.0);
+    if (std::min(u0 - along * n0, u1 - along * n1) + dc - slack > R) continue;
+    testTriangle(e.triangle, a, d, R, best);
+    if (best.toi < end) shrink();
+  }
+}
+
+namespace {
+
+// Where the segment a -> a + d (t in [0, 1]) enters a node's box grown by R, or kNever when it misses.
+inline double enterGrownBox(const BoxNode& n, const Vec3& a, const Vec3& d, double R) {
+  double t0 = 0.0, t1 = 1.0;
+  for (int k = 0; k < 3; ++k) {
+    const double lo = n.lo[k] - R, hi = n.hi[k] + R;
+    if (d[k] == 0.0) {
+      if (a[k] < lo || a[k] > hi) return kNever;
+      continue;
+    }
+    const double inv = 1.0 / d[k];
+    double near = (lo - a[k]) * inv, far = (hi - a[k]) * inv;
+    if (near > far) std::swap(near, far);
+    t0 = std::max(t0, near);
+    t1 = std::min(t1, far);
+  }
+  return t0 <= t1 ? t0 : kNever;
+}
+
+}  // namespace
+
+void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept {
+  if (nodes_.empty()) return;
+  // The grown box holds every centre within R of the node's triangles; its rounding is covered by a margin.
+  const double grow = R * (1.0 + 1e-12) + 1e-12 * magnitudeOf(a, a + d);
+  struct Item {
+    std::uint32_t node;
+    double t;
+  };
+  Item stack[128];
+  int top = 0;
+  const double t = enterGrownBox(nodes_[0], a, d, grow);
+  if (t != kNever) stack[top++] = {0, t};
+  while (top > 0) {
+    const Item item = stack[--top];
+    if (item.t > best.toi) continue;  // every contact inside comes later
+    const BoxNode& node = nodes_[item.node];
+    if (node.count > 0) {
+      for (std::uint32_t i = node.first; i < node.first + node.count; ++i) testTriangle(order_[i], a, d, R, best);
+      continue;
+    }
+    const std::uint32_t left = item.node + 1, right = node.first;
+    const double tl = enterGrownBox(nodes_[left], a, d, grow), tr = enterGrownBox(nodes_[right], a, d, grow);
+    // The nearer child on top of the stack.
+    if (tl <= tr) {
+      if (tr != kNever) stack[top++] = {right, tr};
+      if (tl != kNever) stack[top++] = {left, tl};
+    } else {
+      if (tl != kNever) stack[top++] = {left, tl};
+      stack[top++] = {right, tr};
+    }
+  }
+}
+
+}  // namespace clod_haptics

@@ -1,0 +1,106 @@
+#include "clod_haptics/core/swept_scene.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "clod_haptics/core/contact.h"
+#include "clod_haptics/core/errors.h"
+
+namespace clod_haptics {
+namespace {
+
+void checkPose(const Eigen::Isometry3d& pose) {
+  const Eigen::Matrix3d rotation = pose.linear();
+  const bool rigid = (rotation.transpose() * rotation).isIdentity(1e-6) && rotation.determinant() > 0.0;
+  if (!pose.matrix().allFinite() || !rigid)
+    throw InvalidParameter("SweptScene: the pose is not a finite rigid transform");
+}
+
+// Squared distance from c to the segment a -> b.
+double squaredDistanceToSegment(const Vec3& c, const Vec3& a, const Vec3& b) {
+  return (c - closestPointOnSegment(c, a, b)).squaredNorm();
+}
+
+}  // namespace
+
+std::uint32_t SweptScene::add(std::shared_ptr<const SweptSphereQuery> query, const Eigen::Isometry3d& worldFromObject) {
+  if (!query) throw InvalidParameter("SweptScene: null query");
+  checkPose(worldFromObject);
+  Object o;
+  o.query = std::move(query);
+  o.worldFromObject = worldFromObject;
+  o.objectFromWorld = worldFromObject.inverse();
+  updateBound(o);
+  objects_.push_back(o);
+  return static_cast<std::uint32_t>(objects_.size() - 1);
+}
+
+void SweptScene::setPose(std::uint32_t i, const Eigen::Isometry3d& worldFromObject) {
+  checkPose(worldFromObject);
+  Object& o = objects_.at(i);
+  o.worldFromObject = worldFromObject;
+  o.objectFromWorld = worldFromObject.inverse();
+  updateBound(o);
+}
+
+void SweptScene::setQuery(std::uint32_t i, std::shared_ptr<const SweptSphereQuery> query) {
+  if (!query) throw InvalidParameter("SweptScene: null query");
+  objects_.at(i).query = std::move(query);
+  updateBound(objects_[i]);
+}
+
+void SweptScene::updateBound(Object& o) {
+  const TriangleMesh& mesh = *o.query->mesh();
+  const Eigen::AlignedBox3d box = mesh.bounds();
+  o.boundCentre = o.worldFromObject * mesh.toModel(box.center());
+  // Half the diagonal bounds every vertex; the margin covers the pose's rounding.
+  o.boundRadius = 0.5 * box.diagonal().norm() * (1.0 + 1e-9) + 1e-9 * o.boundCentre.cwiseAbs().maxCoeff();
+}
+
+void SweptScene::sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact& out, std::int32_t hintObject,
+                       std::int32_t hintTriangle) const noexcept {
+  out = SceneSweptContact{};
+  SweptContact c;
+  for (std::size_t i = 0; i < objects_.size(); ++i) {
+    const Object& o = objects_[i];
+    if (!o.active) continue;
+    const double reach = o.boundRadius + r * (1.0 + 1e-9);
+    if (!(squaredDistanceToSegment(o.boundCentre, a, b) <= reach * reach)) continue;
+    o.query->sweep(o.objectFromWorld * a, o.objectFromWorld * b, r, c,
+                   static_cast<std::int32_t>(i) == hintObject ? hintTriangle : -1);
+    out.contact.trianglesTested += c.trianglesTested;
+    if (!c.hit || (out.object >= 0 && !(c.toi < out.contact.toi))) continue;
+    const std::uint32_t tested = out.contact.trianglesTested;
+    out.contact = c;
+    out.contact.trianglesTested = tested;
+    out.contact.centre = o.worldFromObject * c.centre;
+    out.contact.point = o.worldFromObject * c.point;
+    out.contact.normal = o.worldFromObject.linear() * c.normal;
+    out.object = static_cast<std::int32_t>(i);
+  }
+}
+
+Vec3 SweptScene::shadedNormal(std::uint32_t i, std::int32_t t, const Vec3& worldPoint) const noexcept {
+  const Object& o = objects_[i];
+  const TriangleMesh& mesh = *o.query->mesh();
+  const std::size_t ti = static_cast<std::size_t>(t);
+  const Vec3 face = o.worldFromObject.linear() * mesh.normals[ti];
+  // Barycentric weights of the point (projected on the plane) from the sub-triangle areas.
+  const Vec3 p = mesh.toLocal(o.objectFromWorld * worldPoint);
+  const Vec3 &v0 = mesh.vertex(ti, 0), &v1 = mesh.vertex(ti, 1), &v2 = mesh.vertex(ti, 2);
+  const Vec3 n = (v1 - v0).cross(v2 - v0);
+  const double nn = n.squaredNorm();
+  if (!(nn > 0.0)) return face;
+  Vec3 shaded = Vec3::Zero();
+  const Vec3* v[3] = {&v0, &v1, &v2};
+  for (int k = 0; k < 3; ++k) {
+    const double w = std::max(0.0, (*v[(k + 2) % 3] - *v[(k + 1) % 3]).cross(p - *v[(k + 1) % 3]).dot(n) / nn);
+    const Vec3 corner = pseudoNormal(mesh, static_cast<std::uint32_t>(ti), {TriangleFeature::Vertex, std::uint8_t(k)});
+    const double len = corner.norm();
+    shaded += w * (len > 0.0 ? Vec3(corner / len) : mesh.normals[ti]);
+  }
+  const double len = shaded.norm();
+  return len > 0.0 ? Vec3(o.worldFromObject.linear() * (shaded / len)) : face;
+}
+
+}  // namespace clod_haptics

@@ -1,0 +1,363 @@
+// The god-object proxy against analytic answers on thin and concave geometry, beside the penalty
+// model as the detector nodes render it (ClodDetector::query with a QueryCache, then penaltyForce):
+// the criteria the proxy passes are checked to fail for the penalty model, so each can fail. Also:
+// friction, several objects, the proxy never inside a shared mesh over long random paths (brute force),
+// and no allocation per tick.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "allocation_counter.h"
+#include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/contact.h"
+#include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/haptic_renderer.h"
+#include "clod_haptics/core/probes.h"
+#include "clod_haptics/core/sphere_set.h"
+#include "test_helpers.h"
+
+namespace {
+
+using namespace clod_haptics;
+
+constexpr double kRadius = 0.002;     // the shipped launch file's pointer
+constexpr double kStiffness = 400.0;  // and its stiffness
+constexpr double kDt = 1e-3;          // 1 kHz
+
+// A closed box, outward windings.
+std::shared_ptr<const TriangleMesh> box(const Vec3& lo, const Vec3& hi) {
+  std::vector<Vec3> v;
+  for (int i = 0; i < 8; ++i) v.emplace_back(i & 1 ? hi.x() : lo.x(), i & 2 ? hi.y() : lo.y(), i & 4 ? hi.z() : lo.z());
+  const std::vector<Triangle> t = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                                   {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+  return std::make_shared<const TriangleMesh>(makeMesh(v, t, "box"));
+}
+
+// An open surface of quads (corners in order), each wound so that its normal faces `outside`.
+std::shared_ptr<const TriangleMesh> quads(const std::vector<std::array<Vec3, 4>>& q, const std::vector<Vec3>& outside) {
+  std::vector<Vec3> v;
+  std::vector<Triangle> t;
+  for (std::size_t i = 0; i < q.size(); ++i) {
+    const std::uint32_t b = static_cast<std::uint32_t>(v.size());
+    for (const Vec3& c : q[i]) v.push_back(c);
+    const bool flip = (q[i][1] - q[i][0]).cross(q[i][2] - q[i][0]).dot(outside[i]) < 0.0;
+    t.push_back(flip ? Triangle{b, b + 2, b + 1} : Triangle{b, b + 1, b + 2});
+    t.push_back(flip ? Triangle{b, b + 3, b + 2} : Triangle{b, b + 2, b + 3});
+  }
+  return std::make_shared<const TriangleMesh>(makeMesh(v, t, "quads"));
+}
+
+std::shared_ptr<const ClodDetector> detectorOf(const std::shared_ptr<const TriangleMesh>& mesh, double gridRadius) {
+  auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.005));
+  return std::make_shared<const ClodDetector>(mesh, set, FastLevel::Grid, gridRadius);
+}
+
+SweptScene sceneOf(const std::shared_ptr<const TriangleMesh>& mesh, double gridRadius = 0.004) {
+  SweptScene scene;
+  scene.add(std::make_shared<const SweptSphereQuery>(mesh, detectorOf(mesh, gridRadius)),
+            Eigen::Isometry3d::Identity());
+  return scene;
+}
+
+// Device points from `from` to `to` at speed (m/s), one per tick, then `hold` ticks at `to`.
+std::vector<Vec3> path(const Vec3& from, const Vec3& to, double speed, int hold = 0) {
+  const int n = std::max(1, static_cast<int>(std::ceil((to - from).norm() / (speed * kDt))));
+  std::vector<Vec3> out;
+  for (int i = 0; i <= n; ++i) out.push_back(from + (to - from) * (static_cast<double>(i) / n));
+  for (int i = 0; i < hold; ++i) out.push_back(to);
+  return out;
+}
+
+// The shipped pointer and stiffness with the given friction and clamp.
+ProxyParameters stylus(double muStatic = 0.0, double muDynamic = 0.0, double maxForce = 0.0) {
+  ProxyParameters params;
+  params.radius = kRadius;
+  params.stiffness = kStiffness;
+  params.muStatic = muStatic;
+  params.muDynamic = muDynamic;
+  params.maxForce = maxForce;
+  return params;
+}
+
+struct Trace {
+  std::vector<Vec3> device, force, proxy;
+};
+
+Trace runProxy(const SweptScene& scene, const std::vector<Vec3>& devicePath, ProxyParameters params = {}) {
+  params.radius = kRadius;
+  params.stiffness = kStiffness;
+  HapticRenderer renderer(params);
+  Trace trace;
+  ProxyTick tick;
+  for (const Vec3& d : devicePath) {
+    renderer.update(scene, d, kDt, tick);
+    trace.device.push_back(d);
+    trace.force.push_back(tick.force);
+    trace.proxy.push_back(tick.proxy);
+  }
+  return trace;
+}
+
+// The penalty model as the detector nodes compute it: one query per tick with the stream's cache.
+Trace runPenalty(const std::shared_ptr<const TriangleMesh>& mesh, const std::vector<Vec3>& devicePath) {
+  const auto detector = detectorOf(mesh, 0.004);
+  QueryCache cache;
+  ContactResult c;
+  Trace trace;
+  for (const Vec3& d : devicePath) {
+    detector->query(d, kRadius, DetectionMode::Exact, c, &cache);
+    trace.device.push_back(d);
+    trace.force.push_back(penaltyForce(c, kStiffness));
+    trace.proxy.push_back(d);
+  }
+  return trace;
+}
+
+// Ticks whose force pushes the stylus on along its motion (through the part).
+int pushingThrough(const Trace& t, const Vec3& motion) {
+  int n = 0;
+  for (const Vec3& f : t.force) n += f.dot(motion) > 1e-9;
+  return n;
+}
+
+double maxForceJump(const Trace& t) {
+  double m = 0.0;
+  for (std::size_t i = 1; i < t.force.size(); ++i) m = std::max(m, (t.force[i] - t.force[i - 1]).norm());
+  return m;
+}
+
+// ---- A plate r/4 thick, driven through at 0.05, 0.5 and 2 m/s.
+
+const double kPlate = kRadius / 4.0;
+
+std::vector<Vec3> throughPlate(double speed) {
+  return path(Vec3(0.0003, 0.0007, 0.0101), Vec3(0.0003, 0.0007, -0.0101), speed);
+}
+
+TEST(HapticRenderer, ProxyStaysOnTheEntrySideOfAThinPlate) {
+  const auto mesh = box(Vec3(-0.05, -0.05, -kPlate / 2), Vec3(0.05, 0.05, kPlate / 2));
+  const SweptScene scene = sceneOf(mesh);
+  for (double speed : {0.05, 0.5, 2.0}) {
+    const Trace t = runProxy(scene, throughPlate(speed));
+    for (std::size_t i = 0; i < t.proxy.size(); ++i)
+      ASSERT_GE(t.proxy[i].z(), kPlate / 2 + kRadius * (1.0 - 1e-9)) << speed << " m/s, tick " << i;
+    EXPECT_EQ(pushingThrough(t, -Vec3::UnitZ()), 0) << speed << " m/s";
+    // At the end the device is 10.1 mm below the plate's middle: the spring holds it from the top.
+    EXPECT_NEAR(t.force.back().z(), kStiffness * (kPlate / 2 + kRadius + 0.0101), 1e-6) << speed << " m/s";
+  }
+}
+
+TEST(HapticRenderer, PenaltyModelPopsThroughTheThinPlate) {  // the criterion above can fail
+  const auto mesh = box(Vec3(-0.05, -0.05, -kPlate / 2), Vec3(0.05, 0.05, kPlate / 2));
+  for (double speed : {0.05, 0.5, 2.0}) {
+    const Trace t = runPenalty(mesh, throughPlate(speed));
+    EXPECT_GT(pushingThrough(t, -Vec3::UnitZ()), 0) << speed << " m/s";
+  }
+}
+
+// ---- A 90 degree V-groove along x (walls z = |y|) and an inside corner (floor and two walls).
+
+std::shared_ptr<const TriangleMesh> groove() {
+  const double L = 0.05;
+  return quads({{Vec3(-L, 0, 0), Vec3(L, 0, 0), Vec3(L, L, L), Vec3(-L, L, L)},
+                {Vec3(-L, 0, 0), Vec3(L, 0, 0), Vec3(L, -L, L), Vec3(-L, -L, L)}},
+               {Vec3(0, -1, 1), Vec3(0, 1, 1)});
+}
+
+// Down the groove's centre line with a sideways wobble (25 Hz, 0.3 mm, ending at zero), 4 mm below its
+// bottom, then held still.
+std::vector<Vec3> intoGroove() {
+  std::vector<Vec3> p = path(Vec3(0.001, 0.0, 0.02), Vec3(0.001, 0.0, -0.004), 0.05, 300);
+  for (std::size_t i = 0; i + 300 < p.size(); ++i) p[i].y() = 0.0003 * std::sin(2.0 * M_PI * 25.0 * i * kDt);
+  return p;
+}
+
+// Settled and continuous: the force at the end is the spring to the analytic rest point, the proxy is
+// still over the hold, and no tick changes the force by more than maxJump.
+void expectSettled(const Trace& t, const Vec3& rest, double maxJump, const std::string& what) {
+  EXPECT_LT((t.proxy.back() - rest).norm(), 1e-7) << what;
+  EXPECT_LT((t.force.back() - kStiffness * (rest - t.device.back())).norm(), 1e-4) << what;
+  EXPECT_LT((t.proxy.back() - t.proxy[t.proxy.size() - 100]).norm(), 1e-12) << what;
+  EXPECT_LT(maxForceJump(t), maxJump) << what;
+}
+
+bool settles(const Trace& t, const Vec3& rest, double maxJump) {
+  return (t.force.back() - kStiffness * (rest - t.device.back())).norm() < 1e-4 && maxForceJump(t) < maxJump;
+}
+
+TEST(HapticRenderer, ProxySettlesInAGrooveAndAnInsideCorner) {
+  const Trace g = runProxy(sceneOf(groove()), intoGroove());
+  expectSettled(g, Vec3(0.001, 0.0, kRadius * std::sqrt(2.0)), 0.05, "groove");
+  const double L = 0.05;
+  const auto corner = quads({{Vec3(0, 0, 0), Vec3(L, 0, 0), Vec3(L, L, 0), Vec3(0, L, 0)},
+                             {Vec3(0, 0, 0), Vec3(0, L, 0), Vec3(0, L, L), Vec3(0, 0, L)},
+                             {Vec3(0, 0, 0), Vec3(L, 0, 0), Vec3(L, 0, L), Vec3(0, 0, L)}},
+                            {Vec3::UnitZ(), Vec3::UnitX(), Vec3::UnitY()});
+  const Trace c = runProxy(sceneOf(corner), path(Vec3(0.01, 0.012, 0.011), Vec3(-0.003, -0.002, -0.004), 0.05, 200));
+  expectSettled(c, Vec3::Constant(kRadius), 0.05, "corner");
+  EXPECT_FALSE(settles(runPenalty(groove(), intoGroove()), Vec3(0.001, 0.0, kRadius * std::sqrt(2.0)), 0.05));
+  EXPECT_FALSE(settles(runPenalty(corner, path(Vec3(0.01, 0.012, 0.011), Vec3(-0.003, -0.002, -0.004), 0.05, 200)),
+                       Vec3::Constant(kRadius), 0.05));
+}
+
+// Several objects constrain the same proxy: the inside corner made of three separate boxes.
+TEST(HapticRenderer, SeveralObjectsMakeOneCorner) {
+  SweptScene scene;
+  const auto slab = box(Vec3(-0.05, -0.05, -0.01), Vec3(0.05, 0.05, 0.0));
+  const auto query = std::make_shared<const SweptSphereQuery>(slab, detectorOf(slab, 0.004));
+  Eigen::Isometry3d floor = Eigen::Isometry3d::Identity();
+  floor.translation() = Vec3(0.05, 0.05, 0.0);
+  scene.add(query, floor);  // top face z = 0 over x, y in [0, 0.1]
+  Eigen::Isometry3d wallX = Eigen::Isometry3d::Identity();
+  wallX.linear() = Eigen::AngleAxisd(M_PI / 2, Vec3::UnitY()).toRotationMatrix();  // +z to +x, x to -z
+  wallX.translation() = Vec3(0.0, 0.05, 0.05);
+  scene.add(query, wallX);
+  Eigen::Isometry3d wallY = Eigen::Isometry3d::Identity();
+  wallY.linear() = Eigen::AngleAxisd(-M_PI / 2, Vec3::UnitX()).toRotationMatrix();  // +z to +y, y to -z
+  wallY.translation() = Vec3(0.05, 0.0, 0.05);
+  scene.add(query, wallY);
+  const Trace c = runProxy(scene, path(Vec3(0.01, 0.012, 0.011), Vec3(-0.003, -0.002, -0.004), 0.05, 200));
+  expectSettled(c, Vec3::Constant(kRadius), 0.05, "three objects");
+}
+
+// ---- Convex edge and vertex: the proxy rolls over them without buzzing.
+
+int signFlips(const Trace& t, int axis) {
+  int flips = 0;
+  for (std::size_t i = 1; i < t.force.size(); ++i)
+    flips += (t.force[i][axis] > 1e-3 && t.force[i - 1][axis] < -1e-3) ||
+             (t.force[i][axis] < -1e-3 && t.force[i - 1][axis] > 1e-3);
+  return flips;
+}
+
+TEST(HapticRenderer, NoBuzzOverAConvexEdgeAndVertex) {
+  const SweptScene scene = sceneOf(box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.0)));
+  // Pressed 1 mm in, sliding over the edge x = 0.05, then over the corner (0.05, 0.05, 0).
+  for (const Vec3& dir : {Vec3(1, 0, 0), Vec3(1, 1, 0)}) {
+    std::vector<Vec3> p = path(Vec3(0.04, 0.04 * dir.y(), 0.01), Vec3(0.04, 0.04 * dir.y(), kRadius - 0.001), 0.05);
+    const std::vector<Vec3> slide = path(p.back(), p.back() + 0.03 * dir.normalized(), 0.1);
+    p.insert(p.end(), slide.begin(), slide.end());
+    const Trace t = runProxy(scene, p);
+    EXPECT_EQ(signFlips(t, 0) + signFlips(t, 1) + signFlips(t, 2), 0) << dir.transpose();
+    EXPECT_LT(maxForceJump(t), 0.05) << dir.transpose();
+    for (const Vec3& q : t.proxy)
+      ASSERT_FALSE(bruteForceQuery(*scene.query(0)->mesh(), q, kRadius * (1 - 1e-9)).contact);
+  }
+}
+
+// ---- Friction: a drag inside the static cone leaves the proxy in place, beyond it the proxy slides and
+// lags by muDynamic times the push.
+
+TEST(HapticRenderer, FrictionConeStaticThenDynamic) {
+  const SweptScene scene = sceneOf(box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.0)));
+  HapticRenderer renderer(stylus(0.5, 0.3));
+  ProxyTick tick;
+  const double depth = 0.001;  // device 1 mm below the proxy's rest height: normal force 0.4 N
+  for (const Vec3& d : path(Vec3(0, 0, 0.01), Vec3(0, 0, kRadius - depth), 0.05)) renderer.update(scene, d, kDt, tick);
+  const Vec3 rest = tick.proxy;
+  EXPECT_NEAR(rest.z(), kRadius, 1e-9);
+  for (const Vec3& d : path(Vec3(0, 0, kRadius - depth), Vec3(0.00045, 0, kRadius - depth), 0.01)) {
+    renderer.update(scene, d, kDt, tick);
+    ASSERT_EQ(tick.proxy, rest) << "moved inside the static cone at device x " << d.x();
+    EXPECT_TRUE(tick.sticking);
+  }
+  EXPECT_NEAR(tick.force.x(), -kStiffness * 0.00045, 1e-9);  // the friction force resists the drag
+  for (const Vec3& d : path(Vec3(0.00045, 0, kRadius - depth), Vec3(0.005, 0, kRadius - depth), 0.01))
+    renderer.update(scene, d, kDt, tick);
+  EXPECT_GT(tick.proxy.x(), 0.004);
+  EXPECT_NEAR(tick.device.x() - tick.proxy.x(), 0.3 * depth, 1e-6);
+  EXPECT_NEAR(tick.proxy.z(), kRadius, 1e-6);
+  // The penalty model has no friction: the same drag feels no tangential force at all.
+  const Trace pen =
+      runPenalty(scene.query(0)->mesh(), path(Vec3(0, 0, kRadius - depth), Vec3(0.0004, 0, kRadius - depth), 0.01));
+  EXPECT_NEAR(pen.force.back().x(), 0.0, 1e-12);
+}
+
+// ---- The proxy never ends a tick inside a shared mesh, over long random device paths (brute force).
+
+TEST(HapticRenderer, ProxyNeverInsideSharedMeshesOnRandomPaths) {
+  for (const std::string& file : clod_test::sharedMeshes()) {
+    auto mesh = clod_test::loadNormalized(file);
+    auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.01));
+    SweptScene scene;
+    scene.add(std::make_shared<const SweptSphereQuery>(
+                  mesh, std::make_shared<const ClodDetector>(mesh, set, FastLevel::Grid, 0.02)),
+              Eigen::Isometry3d::Identity());
+    const double r = 0.01;
+    ProxyParameters params;
+    params.radius = r;
+    params.stiffness = 1.0;
+    params.muStatic = file.find("head") != std::string::npos ? 0.4 : 0.0;
+    params.muDynamic = 0.2;
+    HapticRenderer renderer(params);
+    renderer.reset(mesh->modelBounds().max() + Vec3::Constant(0.1));
+    const std::size_t ticks = mesh->size() > 50000 ? 1500 : 4000;
+    const std::vector<Vec3> targets = nearSurfaceProbes(*mesh, ticks / 20 + 1, 0.05, 17);
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> step(0.0005, 0.02);  // 0.05 r to 2 r per tick
+    Vec3 device = mesh->modelBounds().max() + Vec3::Constant(0.1);
+    std::size_t target = 0, constrained = 0, inside = 0;
+    double speed = step(rng);
+    ProxyTick tick;
+    for (std::size_t i = 0; i < ticks; ++i) {
+      const Vec3 toward = targets[target] - device;
+      if (toward.norm() <= speed) {
+        device = targets[target];
+        target = (target + 1) % targets.size();
+        speed = step(rng);
+      } else {
+        device += toward.normalized() * speed;
+      }
+      renderer.update(scene, device, kDt, tick);
+      constrained += tick.contact;
+      const bool in = bruteForceQuery(*mesh, tick.proxy, r * (1.0 - 1e-9)).contact;
+      if (in && ++inside <= 3) ADD_FAILURE() << clod_test::baseName(file) << " tick " << i << ": proxy inside";
+    }
+    EXPECT_EQ(inside, 0u) << clod_test::baseName(file);
+    EXPECT_GT(constrained, ticks / 10) << clod_test::baseName(file) << ": the path rarely met the surface";
+  }
+}
+
+TEST(HapticRenderer, AllocatesNothingPerTick) {
+  const SweptScene scene = sceneOf(groove());
+  ProxyParameters params;
+  params.muStatic = 0.4;
+  params.muDynamic = 0.2;
+  params.damping = 0.5;
+  params.forceShading = true;
+  HapticRenderer renderer(params);
+  const std::vector<Vec3> p = intoGroove();
+  ProxyTick tick;
+  gAllocations = 0;
+  gCounting = true;
+  for (const Vec3& d : p) renderer.update(scene, d, kDt, tick);
+  gCounting = false;
+  EXPECT_EQ(gAllocations.load(), 0);
+}
+
+TEST(HapticRenderer, ClampDampingAndBadInput) {
+  const SweptScene scene = sceneOf(box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.0)));
+  ProxyParameters params = stylus(0.0, 0.0, 1.0);
+  HapticRenderer renderer(params);
+  ProxyTick tick;
+  for (const Vec3& d : path(Vec3(0, 0, 0.01), Vec3(0, 0, -0.01), 0.05)) renderer.update(scene, d, kDt, tick);
+  EXPECT_NEAR(tick.force.norm(), 1.0, 1e-12);  // 400 N/m over 12 mm would be 4.8 N
+  const Vec3 proxy = tick.proxy;
+  renderer.update(scene, Vec3(std::nan(""), 0, 0), kDt, tick);
+  EXPECT_EQ(tick.force, Vec3::Zero());
+  EXPECT_EQ(renderer.proxy(), proxy);
+  // Damping opposes the relative velocity: pushing in faster feels stiffer.
+  params.maxForce = 0.0;
+  params.damping = 2.0;
+  HapticRenderer damped(params);
+  damped.reset(Vec3(0, 0, 0.01));
+  for (const Vec3& d : path(Vec3(0, 0, 0.01), Vec3(0, 0, kRadius - 0.001), 0.05)) damped.update(scene, d, kDt, tick);
+  EXPECT_NEAR(tick.force.z(), kStiffness * 0.001 + 2.0 * 0.05, 1e-3);
+}
+
+}  // namespace

@@ -1,0 +1,312 @@
+// The swept-sphere query: the exact triangle test against the distance function sampled along the
+// sweep (closestPointOnTriangle, an independent reference), and SweptSphereQuery (grid and tree) against
+// bruteForceSweep on every shared mesh and on random triangle soups, with grazing, starting-in-contact
+// and zero-length sweeps, plus a check that sweep() allocates nothing.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "allocation_counter.h"
+#include "clod_haptics/core/detector.h"
+#include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/geometry.h"
+#include "clod_haptics/core/probes.h"
+#include "clod_haptics/core/sphere_set.h"
+#include "clod_haptics/core/swept_query.h"
+#include "test_helpers.h"
+
+namespace {
+
+using namespace clod_haptics;
+
+double distanceAt(const Vec3& c, const Vec3& v0, const Vec3& v1, const Vec3& v2) {
+  return (c - closestPointOnTriangle(c, v0, v1, v2)).norm();
+}
+
+// The reference first contact of a sweep with one triangle: the distance f(t) is convex along the
+// line, so its minimum is found by golden-section search and the first t with f = r by bisection
+// before it. Returns -1 when f stays above r on [0, 1]; sets minimum to min f.
+double referenceEntry(const Vec3& a, const Vec3& d, double r, const Vec3& v0, const Vec3& v1, const Vec3& v2,
+                      double& minimum) {
+  auto f = [&](double t) { return distanceAt(a + t * d, v0, v1, v2); };
+  double lo = 0.0, hi = 1.0;
+  for (int i = 0; i < 200; ++i) {
+    const double m1 = lo + (hi - lo) * 0.381966, m2 = hi - (hi - lo) * 0.381966;
+    if (f(m1) <= f(m2))
+      hi = m2;
+    else
+      lo = m1;
+  }
+  const double tMin = 0.5 * (lo + hi);
+  minimum = std::min({f(0.0), f(tMin), f(1.0)});
+  if (f(0.0) <= r) return 0.0;
+  const double tEnd = f(1.0) <= r ? 1.0 : tMin;
+  if (f(tEnd) > r) return -1.0;
+  lo = 0.0;
+  hi = tEnd;
+  for (int i = 0; i < 200; ++i) {
+    const double m = 0.5 * (lo + hi);
+    (f(m) <= r ? hi : lo) = m;
+  }
+  return hi;
+}
+
+Vec3 randomUnit(std::mt19937_64& rng) {
+  std::normal_distribution<double> n;
+  Vec3 v(n(rng), n(rng), n(rng));
+  return v.normalized();
+}
+
+TEST(SweptSphereTriangle, MatchesTheSampledDistanceOnRandomSweeps) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), len(0.0, 3.0), rad(0.01, 0.5);
+  int hits = 0, misses = 0, ambiguous = 0;
+  for (int i = 0; i < 40000; ++i) {
+    const Vec3 v0(u(rng), u(rng), u(rng)), v1(u(rng), u(rng), u(rng)), v2(u(rng), u(rng), u(rng));
+    const double r = rad(rng);
+    const Vec3 a = Vec3(u(rng), u(rng), u(rng)) * 2.0;
+    const Vec3 d = randomUnit(rng) * len(rng);
+    double minimum;
+    const double ref = referenceEntry(a, d, r, v0, v1, v2, minimum);
+    double toi = -1.0;
+    bool start = false;
+    const bool hit = sweptSphereTriangle(a, d, sweptRadiusMargin(r, 2.0), v0, v1, v2, toi, start);
+    if (std::abs(minimum - r) < 1e-7 * r) {  // grazing within the sampling's accuracy: either answer
+      ++ambiguous;
+      continue;
+    }
+    if (ref < 0.0) {
+      EXPECT_FALSE(hit) << "case " << i << ": reported a contact on a free path, toi " << toi;
+      ++misses;
+      continue;
+    }
+    if (ref == 0.0) {  // starts in contact: a hit exactly when the motion approaches
+      const Vec3 w = a - closestPointOnTriangle(a, v0, v1, v2);
+      EXPECT_EQ(hit, w.dot(d) < 0.0 || w.norm() <= 1e-9 * r) << "case " << i;
+      if (hit) {
+        EXPECT_EQ(toi, 0.0);
+      }
+      continue;
+    }
+    ++hits;
+    ASSERT_TRUE(hit) << "case " << i << ": missed a contact at t = " << ref;
+    // Never later than the true contact; earlier by no more than the radius margin allows.
+    EXPECT_LE(toi, ref + 1e-12) << "case " << i;
+    EXPECT_GE(toi, ref - 1e-7) << "case " << i;
+    EXPECT_GE(distanceAt(a + toi * d, v0, v1, v2), r * (1.0 - 1e-9)) << "case " << i;
+  }
+  EXPECT_GT(hits, 500);
+  EXPECT_GT(misses, 1000);
+  EXPECT_LT(ambiguous, 100);
+}
+
+TEST(SweptSphereTriangle, GrazingEdgesAndVertices) {
+  const Vec3 v0(0, 0, 0), v1(1, 0, 0), v2(0, 1, 0);
+  const double r = 0.1;
+  const double R = sweptRadiusMargin(r, 2.0);
+  for (double angle = 0.05; angle < 3.1; angle += 0.1) {
+    // A line parallel to the edge v0 -> v1 at distance s from it, in the plane spanned by -y and z.
+    const Vec3 side(0.0, -std::cos(angle), std::sin(angle));
+    for (double s : {r * (1.0 - 1e-9), r * (1.0 + 1e-6)}) {
+      const Vec3 a = Vec3(-1.0, 0.0, 0.0) + s * side;
+      const Vec3 d(3.0, 0.0, 0.0);
+      double toi;
+      bool start;
+      const bool hit = sweptSphereTriangle(a, d, R, v0, v1, v2, toi, start);
+      if (side.y() > 0.0) continue;  // the line passes over the face: not a grazing case
+      EXPECT_EQ(hit, s < r) << "angle " << angle << " s " << s;
+    }
+  }
+  // Grazing a vertex from a direction outside the triangle's plane.
+  const Vec3 dir = Vec3(1.0, 1.0, 1.0).normalized();
+  const Vec3 off = Vec3(1.0, -1.0, 0.0).normalized();
+  for (double s : {r * (1.0 - 1e-9), r * (1.0 + 1e-6)}) {
+    const Vec3 a = v1 - 2.0 * dir + s * off;
+    double toi;
+    bool start;
+    EXPECT_EQ(sweptSphereTriangle(a, 4.0 * dir, R, v0, v1, v2, toi, start), s < r) << s;
+  }
+}
+
+TEST(SweptSphereTriangle, StartInContactAndZeroLength) {
+  const Vec3 v0(0, 0, 0), v1(1, 0, 0), v2(0, 1, 0);
+  const double r = 0.1, R = sweptRadiusMargin(r, 1.0);
+  const Vec3 a(0.2, 0.2, 0.05);  // touching the face from above
+  double toi = -1.0;
+  bool start = false;
+  EXPECT_TRUE(sweptSphereTriangle(a, Vec3(0, 0, -0.01), R, v0, v1, v2, toi, start));  // pushing in
+  EXPECT_EQ(toi, 0.0);
+  EXPECT_TRUE(start);
+  EXPECT_FALSE(sweptSphereTriangle(a, Vec3(0.1, 0, 0), R, v0, v1, v2, toi, start));  // sliding
+  EXPECT_FALSE(sweptSphereTriangle(a, Vec3(0, 0, 0.1), R, v0, v1, v2, toi, start));  // leaving
+  EXPECT_TRUE(sweptSphereTriangle(a, Vec3::Zero(), R, v0, v1, v2, toi, start));      // zero length: in contact
+  EXPECT_FALSE(sweptSphereTriangle(Vec3(0.2, 0.2, 0.2), Vec3::Zero(), R, v0, v1, v2, toi, start));  // free
+  // The centre on the triangle: blocked whichever way it moves.
+  EXPECT_TRUE(sweptSphereTriangle(Vec3(0.2, 0.2, 0.0), Vec3(0, 0, 0.1), R, v0, v1, v2, toi, start));
+}
+
+// Sweeps starting exactly at the test radius from a face (where a proxy rests) and moving into it: the
+// distance and the plane offset round independently there, and neither may let the sweep through.
+TEST(SweptSphereTriangle, StartOnTheContactShellMovingIn) {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), w(0.05, 0.9);
+  int missed = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const Vec3 v0(u(rng), u(rng), u(rng)), v1(u(rng), u(rng), u(rng)), v2(u(rng), u(rng), u(rng));
+    const Vec3 n = (v1 - v0).cross(v2 - v0).normalized();
+    const double b1 = w(rng), b2 = w(rng) * (1.0 - b1);
+    const double r = 0.01 + 0.1 * w(rng), R = sweptRadiusMargin(r, 2.0);
+    const Vec3 a = v0 + b1 * (v1 - v0) + b2 * (v2 - v0) + n * R;
+    const Vec3 d = (-n + 0.3 * randomUnit(rng)) * 0.01 * r;
+    double toi;
+    bool start;
+    if (d.dot(n) < 0.0 && !sweptSphereTriangle(a, d, R, v0, v1, v2, toi, start)) ++missed;
+  }
+  EXPECT_EQ(missed, 0);
+}
+
+// A plate of two triangles at z = 0: the answer's fields from the definition.
+TEST(SweptSphereQuery, AnswerFieldsOnAPlate) {
+  auto mesh = std::make_shared<const TriangleMesh>(
+      makeMesh({{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}}, {{0, 1, 2}, {0, 2, 3}}, "plate"));
+  const SweptSphereQuery query(mesh);
+  SweptContact c;
+  query.sweep(Vec3(0.3, -0.2, 1.0), Vec3(0.3, -0.2, -1.0), 0.25, c);
+  ASSERT_TRUE(c.hit);
+  EXPECT_NEAR(c.toi, 0.375, 1e-9);
+  EXPECT_LE(c.toi, 0.375);
+  EXPECT_NEAR((c.point - Vec3(0.3, -0.2, 0.0)).norm(), 0.0, 1e-9);
+  EXPECT_NEAR((c.normal - Vec3::UnitZ()).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((c.centre - Vec3(0.3, -0.2, 0.25)).norm(), 0.0, 1e-9);
+  EXPECT_EQ(c.region.feature, TriangleFeature::Face);
+  EXPECT_FALSE(c.startInContact);
+  query.sweep(Vec3(0.3, -0.2, 1.0), Vec3(0.3, -0.2, 0.5), 0.25, c);
+  EXPECT_FALSE(c.hit);
+  query.sweep(Vec3(0.3, -0.2, 1.0), Vec3(0.3, -0.2, 1.0) + Vec3(1, 0, 0) * std::nan(""), 0.25, c);
+  EXPECT_FALSE(c.hit);
+}
+
+// Sweeps around a mesh: from points near the surface, in random directions, of lengths from a
+// hundredth of the radius to many cells, plus zero-length ones and ones aimed through the surface.
+struct Sweep {
+  Vec3 a, b;
+};
+std::vector<Sweep> sweepsNear(const TriangleMesh& mesh, std::size_t count, double r, std::uint64_t seed) {
+  const std::vector<Vec3> starts = nearSurfaceProbes(mesh, count, 3.0 * r, seed);
+  std::mt19937_64 rng(seed + 1);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Sweep> out;
+  for (std::size_t i = 0; i < starts.size(); ++i) {
+    const double kind = u(rng);
+    double length = r * std::pow(10.0, -2.0 + 3.0 * u(rng));  // 0.01 r to 10 r
+    if (kind < 0.05) length = 0.0;
+    if (kind > 0.95) length = 0.3 * mesh.diagonal();
+    out.push_back({starts[i], starts[i] + randomUnit(rng) * length});
+  }
+  return out;
+}
+
+void expectSameAsBruteForce(const TriangleMesh& mesh, const SweptSphereQuery& query, const std::vector<Sweep>& sweeps,
+                            double r, const std::string& label) {
+  std::vector<SweptContact> got(sweeps.size()), want(sweeps.size());
+  clod_test::parallelFor(sweeps.size(), 2, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) {
+      want[i] = bruteForceSweep(mesh, sweeps[i].a, sweeps[i].b, r);
+      // A hint (the answer's triangle, another one, or none) changes the work, never the answer.
+      const std::int32_t hint = i % 3 == 0   ? -1
+                                : i % 3 == 1 ? want[i].triangle
+                                             : static_cast<std::int32_t>(i % mesh.size());
+      query.sweep(sweeps[i].a, sweeps[i].b, r, got[i], hint);
+    }
+  });
+  std::size_t hits = 0, starts = 0, mismatches = 0;
+  for (std::size_t i = 0; i < sweeps.size(); ++i) {
+    hits += want[i].hit;
+    starts += want[i].hit && want[i].startInContact;
+    const bool same = got[i].hit == want[i].hit &&
+                      (!want[i].hit || (got[i].toi == want[i].toi && got[i].triangle == want[i].triangle &&
+                                        got[i].point == want[i].point && got[i].normal == want[i].normal));
+    if (!same && ++mismatches <= 5)
+      ADD_FAILURE() << label << " sweep " << i << ": got hit " << got[i].hit << " toi " << got[i].toi << " tri "
+                    << got[i].triangle << ", want hit " << want[i].hit << " toi " << want[i].toi << " tri "
+                    << want[i].triangle;
+  }
+  EXPECT_EQ(mismatches, 0u) << label;
+  EXPECT_GT(hits, sweeps.size() / 10) << label << ": too few contacts to mean anything";
+  EXPECT_GT(starts, 0u) << label << ": no sweep started in contact";
+}
+
+TEST(SweptSphereQuery, SameAsBruteForceOnSharedMeshes) {
+  for (const std::string& path : clod_test::sharedMeshes()) {
+    auto mesh = clod_test::loadNormalized(path);
+    auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.01));
+    auto detector = std::make_shared<const ClodDetector>(mesh, set, FastLevel::Grid, 0.02);
+    const SweptSphereQuery withGrid(mesh, detector), treeOnly(mesh);
+    const std::size_t count = mesh->size() > 50000 ? 600 : 2000;
+    for (double r : {0.004, 0.02, 0.05}) {  // 0.05: beyond the grid's radius, the tree answers
+      const std::vector<Sweep> sweeps = sweepsNear(*mesh, count, r, 11);
+      const std::string label = clod_test::baseName(path) + " r " + std::to_string(r);
+      expectSameAsBruteForce(*mesh, withGrid, sweeps, r, label + " grid");
+      if (r == 0.004) expectSameAsBruteForce(*mesh, treeOnly, sweeps, r, label + " tree");
+    }
+  }
+}
+
+// Random triangle soups, some far from the origin (a local frame) and with slivers.
+TEST(SweptSphereQuery, SameAsBruteForceOnRandomMeshes) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int m = 0; m < 6; ++m) {
+    const Vec3 shift = m % 2 ? Vec3(1e4, -3e3, 5e2) : Vec3::Zero();
+    std::vector<Vec3> vertices;
+    std::vector<Triangle> triangles;
+    for (std::uint32_t t = 0; t < 2000; ++t) {
+      const Vec3 c(u(rng), u(rng), u(rng));
+      const double size = 0.01 + 0.05 * u(rng);
+      for (int k = 0; k < 3; ++k)
+        vertices.push_back(shift + c + randomUnit(rng) * size * (k == 2 && t % 7 == 0 ? 1e-9 : 1.0));
+      triangles.push_back({3 * t, 3 * t + 1, 3 * t + 2});
+    }
+    auto mesh = std::make_shared<const TriangleMesh>(makeMesh(vertices, triangles, "soup"));
+    auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
+    auto detector = std::make_shared<const ClodDetector>(mesh, set, FastLevel::Grid, 0.03);
+    const SweptSphereQuery query(mesh, detector);
+    for (double r : {0.005, 0.03}) {
+      std::vector<Sweep> sweeps = sweepsNear(*mesh, 1500, r, 100 + m);
+      expectSameAsBruteForce(*mesh, query, sweeps, r, "soup " + std::to_string(m) + " r " + std::to_string(r));
+    }
+  }
+}
+
+TEST(SweptSphereQuery, AllocatesNothing) {
+  auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("elephant.off"));
+  auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.01));
+  auto detector = std::make_shared<const ClodDetector>(mesh, set, FastLevel::Grid, 0.02);
+  const SweptSphereQuery query(mesh, detector);
+  const std::vector<Sweep> sweeps = sweepsNear(*mesh, 500, 0.01, 5);
+  SweptContact c;
+  gAllocations = 0;
+  gCounting = true;
+  for (const Sweep& s : sweeps) {
+    query.sweep(s.a, s.b, 0.01, c);  // grid
+    query.sweep(s.a, s.b, 0.05, c);  // tree
+  }
+  gCounting = false;
+  EXPECT_EQ(gAllocations.load(), 0);
+}
+
+TEST(SweptSphereQuery, RejectsAnotherMeshsDetector) {
+  auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
+  auto other = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
+  auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.01));
+  auto detector = std::make_shared<const ClodDetector>(mesh, set, FastLevel::Grid, 0.02);
+  EXPECT_THROW(SweptSphereQuery(other, detector), InvalidParameter);
+  EXPECT_THROW(SweptSphereQuery(nullptr), InvalidParameter);
+}
+
+}  // namespace
