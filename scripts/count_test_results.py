@@ -13,6 +13,7 @@ import xml.etree.ElementTree as ET
 def main():
     root = sys.argv[1] if len(sys.argv) > 1 else "."
     cases = {}
+    messages = {}
     broken = []
     for folder, _, files in os.walk(root):
         for name in sorted(files):
@@ -27,8 +28,14 @@ def main():
             for case in tree.iter("testcase"):
                 key = (name.split("-")[0] if name.startswith("rostest-") else "", case.get("classname", ""),
                        case.get("name", ""))
-                if case.find("failure") is not None or case.find("error") is not None:
+                bad = case.find("failure")
+                if bad is None:
+                    bad = case.find("error")
+                if bad is not None:
                     state = "failed"
+                    text = (bad.get("message") or "") + "\n" + (bad.text or "")
+                    messages.setdefault(key, []).append("%s: %s" % (name, " | ".join(
+                        line.strip() for line in text.splitlines() if line.strip())[:600]))
                 elif case.find("skipped") is not None or case.get("status") == "notrun":
                     state = "skipped"
                 else:
@@ -44,6 +51,8 @@ def main():
     for key, state in sorted(cases.items()):
         if state == "failed":
             print("FAILED:", "/".join(k for k in key if k), file=sys.stderr)
+            for message in messages.get(key, []):
+                print("  ", message, file=sys.stderr)
     failed += len(broken)
     line = "%d passed, %d failed" % (passed, failed)
     if skipped:
