@@ -197,6 +197,8 @@ void HapticDetector::loadObjects() {
   const std::size_t n = objects_.size();
   contacts_.resize(n);
   caches_.resize(n);
+  startContacts_.resize(n);
+  startCaches_.resize(n);
   last_.contacts.reserve(n);
   last_.near.resize(n);
   last_.poses.resize(n);
@@ -429,13 +431,27 @@ void HapticDetector::answer(const ros::MessageEvent<const geometry_msgs::PoseSta
   if (markersWanted_.load(std::memory_order_relaxed)) keepForDisplay(p, radius, out.contacts, proxy ? &tick : nullptr);
 }
 
+bool HapticDetector::outsideEverything(const Vec3& p, double radius) {
+  // A cache that says "the last answer was inside" makes the exact query search for the nearest triangle beyond
+  // the radius (ClodDetector::query): a centre behind it is inside. Only while the proxy waits to start.
+  for (QueryCache& c : startCaches_) {
+    c = QueryCache();
+    c.lastInside = true;
+  }
+  SceneQueryResult deep;
+  scene_.query(p, radius, DetectionMode::Exact, startContacts_.data(), startContacts_.size(), deep,
+               startCaches_.data());
+  return !deep.contact;
+}
+
 bool HapticDetector::renderProxy(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius, bool touching,
                                  ProxyTick& tick) {
   // The proxy starts (again after a switch to it, a new radius, or a stamp going back: a replay restarted) at a
-  // pointer that touches nothing, so that it never starts inside an object; until then the penalty force answers.
+  // pointer that touches nothing and is not deep inside an object, so that it never starts inside one; until then
+  // the penalty force answers.
   const ros::Time& stamp = msg.header.stamp;
   if (proxyActive_ && (radius != proxyRadius_ || stamp < lastStamp_)) proxyActive_ = false;
-  if (!proxyModel_.load(std::memory_order_relaxed) || (!proxyActive_ && touching)) {
+  if (!proxyModel_.load(std::memory_order_relaxed) || (!proxyActive_ && (touching || !outsideEverything(p, radius)))) {
     proxyActive_ = false;
     return false;
   }
@@ -485,6 +501,7 @@ void HapticDetector::publishAnswer(const geometry_msgs::PoseStamped& msg, const 
     m.normal = toVector3(c.normal);
     m.detection_time = detectionTime;
     if (proxy) m.proxy = toPoint(proxy->proxy);
+    m.proxy_active = proxy != nullptr;
     const auto& level = scene_.detector(c.object);
     m.clustering_distance = level ? level->spheres()->distance : std::numeric_limits<double>::quiet_NaN();
     m.level_spheres = level ? static_cast<std::uint32_t>(level->spheres()->size()) : 0;
@@ -516,6 +533,7 @@ void HapticDetector::publishAnswer(const geometry_msgs::PoseStamped& msg, const 
     contact->clustering_distance = level ? level->spheres()->distance : std::numeric_limits<double>::quiet_NaN();
     contact->level_spheres = level ? static_cast<std::uint32_t>(level->spheres()->size()) : 0;
     if (proxy) contact->proxy = toPoint(proxy->proxy);
+    contact->proxy_active = proxy != nullptr;
   }
 
   // The force in the pose's frame, where the device renders it.

@@ -17,6 +17,7 @@
 #include "clod_haptics/core/contact.h"
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/haptic_renderer.h"
+#include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "test_helpers.h"
@@ -320,6 +321,46 @@ TEST(HapticRenderer, ProxyNeverInsideSharedMeshesOnRandomPaths) {
     }
     EXPECT_EQ(inside, 0u) << clod_test::baseName(file);
     EXPECT_GT(constrained, ticks / 10) << clod_test::baseName(file) << ": the path rarely met the surface";
+  }
+}
+
+// The device jumps many radii between ticks (a burst of poses answered newest-first, a replay skipping ahead, a
+// dropped stretch of the stream): the proxy still never ends inside, on the bundled torus as the detector node
+// builds it (r = 2 mm, d = 3 mm, grid for r) and on every shared mesh. Probes as the rostest burst draws them.
+TEST(HapticRenderer, ProxyNeverInsideAfterLongJumps) {
+  struct Case {
+    std::shared_ptr<const TriangleMesh> mesh;
+    double r, d;
+  };
+  std::vector<Case> cases;
+  cases.push_back({std::make_shared<const TriangleMesh>(loadMesh(CLOD_PACKAGE_DATA_DIR "/meshes/torus.obj")), kRadius,
+                   0.003});
+  for (const std::string& file : clod_test::sharedMeshes()) cases.push_back({clod_test::loadNormalized(file), 0.01, 0.02});
+  for (const Case& c : cases) {
+    auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(c.mesh).build(c.d));
+    SweptScene scene;
+    scene.add(std::make_shared<const SweptSphereQuery>(
+                  c.mesh, std::make_shared<const ClodDetector>(c.mesh, set, FastLevel::Grid, c.r)),
+              Eigen::Isometry3d::Identity());
+    ProxyParameters params;
+    params.radius = c.r;
+    params.stiffness = kStiffness;
+    HapticRenderer renderer(params);
+    renderer.reset(c.mesh->modelBounds().max() + Vec3::Constant(4.0 * c.r));
+    std::vector<Vec3> targets = nearSurfaceProbes(*c.mesh, 1500, 2.0 * c.r, 77);
+    const std::vector<Vec3> far = uniformProbes(*c.mesh, 500, 4.0 * c.r, 78);
+    targets.insert(targets.end(), far.begin(), far.end());
+    std::shuffle(targets.begin(), targets.end(), std::mt19937_64(3));
+    std::size_t inside = 0, constrained = 0;
+    ProxyTick tick;
+    for (std::size_t i = 0; i < targets.size(); ++i) {
+      renderer.update(scene, targets[i], kDt, tick);
+      constrained += tick.contact;
+      if (bruteForceQuery(*c.mesh, tick.proxy, c.r * (1.0 - 1e-9)).contact && ++inside <= 3)
+        ADD_FAILURE() << c.mesh->name << " jump " << i << ": proxy inside at " << tick.proxy.transpose();
+    }
+    EXPECT_EQ(inside, 0u) << c.mesh->name;
+    EXPECT_GT(constrained, targets.size() / 10) << c.mesh->name << ": the jumps rarely met the surface";
   }
 }
 

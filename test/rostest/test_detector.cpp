@@ -145,7 +145,15 @@ class DetectorClient {
       EXPECT_NEAR(normal.norm(), 1.0, 1e-9);
       EXPECT_GT(c.triangle, -1);
     }
-    if (proxyModel_) {
+    if (!proxyModel_) EXPECT_FALSE(c.proxy_active);
+    if (proxyModel_ && !c.proxy_active) {
+      // The proxy waits to start until the pointer touches nothing and is not inside: a touching or inside
+      // pointer (brute force with no radius bound) is the only reason to answer with the penalty force.
+      const ContactResult deep = bruteForceSignedQuery(mesh_, pMesh, radius_);
+      EXPECT_TRUE(ref.contact || (deep.contact && deep.inside))
+          << "penalty force for a free pointer outside the mesh: " << pMesh.transpose();
+    }
+    if (proxyModel_ && c.proxy_active) {
       const Vec3 proxy(c.proxy.x, c.proxy.y, c.proxy.z);
       EXPECT_FALSE(bruteForceQuery(mesh_, proxy, radius_ * (1.0 - 1e-6)).contact)
           << "proxy inside: " << proxy.transpose();
@@ -577,10 +585,48 @@ TEST(Detector, ProxyPoseIsPublishedBesideTheContact) {
     EXPECT_EQ(q.y, c.proxy.y);
     EXPECT_EQ(q.z, c.proxy.z);
     dc.expectMatchesReference(pMesh, c, f);
+    EXPECT_TRUE(c.proxy_active) << "pose " << i << ": the proxy started at the first free pose outside";
     if (i == 20) {  // the pointer is 1.5 r inside; the proxy rests on the surface, r out along the normal
       const Vec3 proxy(q.x, q.y, q.z);
       EXPECT_LT((proxy - (near.point + near.normal * dc.radius())).norm(), 1e-6 * dc.radius());
     }
+  }
+}
+
+// A proxy that (re)starts must not start inside a closed mesh, where its sweeps would keep it trapped behind the
+// surface: after a reset (a pointer radius change) the first poses lie deep inside, farther than r from any
+// triangle; they are answered by the penalty force (proxy_active false), and the proxy starts at the first pose
+// outside. Then the path goes back in: the proxy stays outside, on the surface.
+TEST(Detector, ProxyNeverStartsDeepInsideTheMesh) {
+  DetectorClient& dc = client();
+  if (!dc.proxyModel()) GTEST_SKIP() << "force_model penalty";
+  ASSERT_TRUE(dc.waitReady());
+  std::vector<Vec3> deep;
+  for (const Vec3& p : uniformProbes(dc.mesh(), 4000, 0.0, 41)) {
+    const ContactResult ref = bruteForceSignedQuery(dc.mesh(), p, dc.radius());
+    if (ref.contact && ref.inside && ref.distance > 2.0 * dc.radius()) deep.push_back(p);
+    if (deep.size() == 5) break;
+  }
+  if (deep.empty()) GTEST_SKIP() << "no point deeper than 2 r inside this mesh";
+  // A radius change resets the proxy; the old radius comes back for the tests after this one.
+  const Vec3 outside = dc.mesh().modelBounds().max() + Vec3::Constant(10.0 * dc.radius());
+  Contact c;
+  geometry_msgs::WrenchStamped f;
+  ASSERT_TRUE(dc.reconfigure({{"pointer_radius", 1.25 * dc.radius()}}, {}));
+  ASSERT_TRUE(dc.waitAnswer(dc.publish(dc.meshToPose() * outside), c, f));  // the proxy runs at 1.25 r
+  ASSERT_TRUE(dc.reconfigure({{"pointer_radius", dc.radius()}}, {}));
+  for (const Vec3& p : deep) {
+    ASSERT_TRUE(dc.waitAnswer(dc.publish(dc.meshToPose() * p), c, f));
+    EXPECT_FALSE(c.proxy_active) << "the proxy started inside at " << p.transpose();
+    dc.expectMatchesReference(p, c, f);
+  }
+  ASSERT_TRUE(dc.waitAnswer(dc.publish(dc.meshToPose() * outside), c, f));
+  EXPECT_TRUE(c.proxy_active) << "the proxy did not start at a free pose";
+  for (int i = 1; i <= 10; ++i) {  // straight back to the first deep point
+    const Vec3 p = outside + (deep.front() - outside) * (i / 10.0);
+    ASSERT_TRUE(dc.waitAnswer(dc.publish(dc.meshToPose() * p), c, f));
+    EXPECT_TRUE(c.proxy_active);
+    dc.expectMatchesReference(p, c, f);  // the proxy is never inside
   }
 }
 

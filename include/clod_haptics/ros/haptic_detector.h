@@ -156,6 +156,9 @@ class HapticDetector {
   void publishProxyPose(const geometry_msgs::PoseStamped& msg, const std_msgs::Header& header,
                         const Eigen::Isometry3d& sceneFromPose, const Vec3& proxy);
   bool renderProxy(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius, bool touching, ProxyTick& tick);
+  /// The pointer neither touches nor lies deep inside any object (a deep search from the point): where a proxy may
+  /// start. A proxy started inside a closed mesh would stay trapped behind its surface.
+  bool outsideEverything(const Vec3& p, double radius);
 
   // Levels (haptic_detector_levels.cpp).
   void onReconfigure(DetectorConfig& config, std::uint32_t level);
@@ -195,6 +198,8 @@ class HapticDetector {
   std::vector<ObjectState, Eigen::aligned_allocator<ObjectState>> objects_;
   std::vector<SceneContact> contacts_;                                // query output, one slot per object
   std::vector<QueryCache> caches_;                                    // temporal coherence, one per object
+  std::vector<SceneContact> startContacts_;                           // outsideEverything's query, one per object
+  std::vector<QueryCache> startCaches_;                               // reset to "inside" for its deep search
   SweptScene sweptScene_;                                             // the same objects for the proxy's swept queries
   std::vector<std::shared_ptr<const SweptSphereQuery>> firstSweeps_;  // held so no swap frees them on the pose thread
   HapticRenderer renderer_;                                           // the proxy (force_model proxy)
