@@ -80,6 +80,28 @@ void SweptScene::sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact
   }
 }
 
+bool SweptScene::clearAt(const Vec3& p, double r) const noexcept {
+  if (!validPointer(p, r)) return false;
+  for (const Object& o : objects_) {
+    if (!o.active) continue;
+    const Vec3 local = o.objectFromWorld * p;
+    if (const auto& detector = o.query->detector()) {
+      QueryCache deep;  // "the last answer was inside": the query follows the nearest triangle beyond r
+      deep.lastInside = true;
+      ContactResult c;
+      detector->query(local, r, DetectionMode::Exact, c, &deep);
+      if (c.contact) return false;
+    } else {
+      const double reach = o.boundRadius + r * (1.0 + 1e-9);
+      if (!((p - o.boundCentre).squaredNorm() <= reach * reach)) continue;
+      SweptContact c;
+      o.query->sweep(local, local, r, c);
+      if (c.hit) return false;
+    }
+  }
+  return true;
+}
+
 Vec3 SweptScene::shadedNormal(std::uint32_t i, std::int32_t t, const Vec3& worldPoint) const noexcept {
   const Object& o = objects_[i];
   const TriangleMesh& mesh = *o.query->mesh();

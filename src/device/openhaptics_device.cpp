@@ -145,8 +145,31 @@ void OpenHapticsDevice::stop() {
   started_ = false;
 }
 
-void OpenHapticsDevice::renderForce(double now, double wallNow, bool calibrated, const double velocity[3],
-                                    double out[3]) noexcept {
+bool OpenHapticsDevice::attachServoRenderer(std::shared_ptr<ServoRenderer> renderer) {
+  if (started_) throw DeviceError("OpenHaptics: a servo renderer must be attached before start()");
+  servoRenderer_ = std::move(renderer);
+  return true;
+}
+
+Eigen::Vector3d OpenHapticsDevice::rosPosition(const double transform[16]) const {
+  // Column-major 4x4, translation in millimetres.
+  Eigen::Matrix3d rotation;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) rotation(r, c) = transform[c * 4 + r];
+  const Eigen::Vector3d positionMm(transform[12], transform[13], transform[14]);
+  const Eigen::Matrix3d rosRotation = deviceToRos() * rotation * deviceToRos().transpose();
+  return deviceToRos() * positionMm * 0.001 + rosRotation * options_.tipOffset;
+}
+
+bool OpenHapticsDevice::commandedForce(double now, double wallNow, const double transform[16],
+                                       Eigen::Vector3d& ros) noexcept {
+  if (servoRenderer_) {
+    // The force of the position read in this frame: the loop closes within the tick.
+    if (servoRenderer_->render(rosPosition(transform), now, ros, wallNow)) {
+      latency_.record(static_cast<std::int64_t>((steadySeconds() - now) * 1e9));
+      return true;
+    }
+  }
   if (commands_.update()) {
     const Command& fresh = commands_.front();
     if (fresh.poseStamp > 0.0 && fresh.poseStamp != lastPoseStamp_) {
@@ -155,13 +178,23 @@ void OpenHapticsDevice::renderForce(double now, double wallNow, bool calibrated,
     }
   }
   const Command& command = commands_.front();
-  out[0] = out[1] = out[2] = 0.0;
-  if (stopping_.load(std::memory_order_relaxed) || !calibrated || command.writtenAt <= 0.0) return;
+  if (command.writtenAt <= 0.0) return false;
   if (!(now - command.writtenAt <= options_.forceTimeout)) {
     staleFrames_.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  ros = Eigen::Vector3d(command.force[0], command.force[1], command.force[2]);
+  return true;
+}
+
+void OpenHapticsDevice::renderForce(double now, double wallNow, bool calibrated, const double transform[16],
+                                    const double velocity[3], double out[3]) noexcept {
+  out[0] = out[1] = out[2] = 0.0;
+  Eigen::Vector3d ros;
+  if (stopping_.load(std::memory_order_relaxed) || !calibrated || !commandedForce(now, wallNow, transform, ros)) {
+    if (!servoRenderer_) commands_.update();  // keep the freshest command; nothing rendered from it
     return;
   }
-  const Eigen::Vector3d ros(command.force[0], command.force[1], command.force[2]);
   // Damping in the device frame: velocity in mm/s, damping in N s/m.
   Eigen::Vector3d f = deviceToRos().transpose() * ros -
                       options_.damping * 1e-3 * Eigen::Vector3d(velocity[0], velocity[1], velocity[2]);
@@ -192,7 +225,7 @@ bool OpenHapticsDevice::servo() noexcept {
   const double now = steadySeconds();
   const double wallNow = wallSeconds();
   HDdouble force[3];
-  renderForce(now, wallNow, calibration == HD_CALIBRATION_OK, velocity, force);
+  renderForce(now, wallNow, calibration == HD_CALIBRATION_OK, s.transform, velocity, force);
   hdSetDoublev(HD_CURRENT_FORCE, force);
   hdEndFrame(hhd);
 
@@ -221,15 +254,13 @@ bool OpenHapticsDevice::read(DeviceState& state) {
   samples_.update();
   const Sample& s = samples_.front();
   if (!started_ || failed_.load(std::memory_order_acquire) || s.frame == 0 || !s.valid) return false;
-  // Column-major 4x4, translation in millimetres.
-  Eigen::Matrix3d rotation;
+  Eigen::Matrix3d rotation;  // column-major 4x4
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) rotation(r, c) = s.transform[c * 4 + r];
-  const Eigen::Vector3d positionMm(s.transform[12], s.transform[13], s.transform[14]);
   const Eigen::Matrix3d rosRotation = deviceToRos() * rotation * deviceToRos().transpose();
   state.time = s.steadyTime;
   state.stamp = s.wallTime;
-  state.position = deviceToRos() * positionMm * 0.001 + rosRotation * options_.tipOffset;
+  state.position = rosPosition(s.transform);
   state.orientation = Eigen::Quaterniond(rosRotation).normalized();
   state.joints = driverJointStates(s.joints, s.gimbal, options_.joints);
   state.buttons =

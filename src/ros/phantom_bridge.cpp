@@ -47,6 +47,8 @@ PhantomBridgeParams PhantomBridge::readParameters(const ros::NodeHandle& pnh) {
   pnh.param("max_force_rate", p.safety.maxForceRate, p.safety.maxForceRate);
   pnh.param("force_timeout", p.safety.staleTimeout, p.safety.staleTimeout);
   pnh.param("device_timeout", p.deviceTimeout, p.deviceTimeout);
+  pnh.param("servo_render", p.servoRender, p.servoRender);
+  pnh.param("detector", p.detector, p.detector);
   if (p.name.empty()) throw std::invalid_argument("~omni_name must not be empty");
   if (!std::isfinite(p.rate) || p.rate < 1.0 || p.rate > 10000.0) {
     throw std::invalid_argument("~rate must be between 1 and 10000 Hz, got " + std::to_string(p.rate));
@@ -137,8 +139,27 @@ PhantomBridge::PhantomBridge(ros::NodeHandle nh, ros::NodeHandle pnh, std::uniqu
 
 PhantomBridge::~PhantomBridge() { stop(); }
 
+void PhantomBridge::startServoRender() {
+  servoLink_.reset();
+  deviceRenders_ = false;
+  if (!params_.servoRender) return;
+  try {
+    servoLink_ = std::make_unique<ServoRenderLink>(nh_, params_.detector, params_.frameId);
+  } catch (const std::exception& e) {
+    ROS_WARN("phantom_bridge: servo rendering off, rendering %s/force_feedback instead: %s", params_.name.c_str(),
+             e.what());
+    return;
+  }
+  deviceRenders_ = device_->attachServoRenderer(servoLink_->renderer());
+  ROS_INFO("phantom_bridge: the proxy is rendered in the %s against %s; %s/force_feedback is used while %s's "
+           "force_model is penalty",
+           deviceRenders_ ? "device's servo loop" : "bridge's loop", servoLink_->description().c_str(),
+           params_.name.c_str(), params_.detector.c_str());
+}
+
 void PhantomBridge::start() {
   if (running_) return;
+  startServoRender();
   device_->start();
   deviceStarted_ = true;
   try {
@@ -305,10 +326,27 @@ void PhantomBridge::noState(double now) {
   }
 }
 
+ForceCommand PhantomBridge::nextCommand(double now, const DeviceState* state, double& commandStamp) {
+  if (servoLink_ && !deviceRenders_ && state != nullptr) {
+    // This loop is the device's servo loop: the force answers the state just read.
+    ForceCommand rendered;
+    if (servoLink_->renderer()->render(state->position, state->time, rendered.force, state->stamp)) {
+      rendered.receivedAt = now;
+      rendered.valid = true;
+      commandStamp = 0.0;
+      return rendered;
+    }
+  }
+  std::lock_guard<std::mutex> lock(commandMutex_);
+  commandStamp = commandStamp_;
+  return command_;
+}
+
 void PhantomBridge::tick(double now) {
   ++ticks_;
   DeviceState state;
-  if (device_->read(state)) {
+  const bool haveState = device_->read(state);
+  if (haveState) {
     lastStateAt_ = now;
     publishState(state);
     if (state.stamp > 0.0) poseWait_.record(static_cast<std::int64_t>((steadyNow() - state.time) * 1e9));
@@ -317,13 +355,8 @@ void PhantomBridge::tick(double now) {
     if (!running_) return;
   }
 
-  ForceCommand command;
   double commandStamp = 0.0;
-  {
-    std::lock_guard<std::mutex> lock(commandMutex_);
-    command = command_;
-    commandStamp = commandStamp_;
-  }
+  const ForceCommand command = nextCommand(now, haveState ? &state : nullptr, commandStamp);
   ForceStatus status;
   const Eigen::Vector3d force = safety_.update(command, now, &status);
   device_->commandForceFor(force, ros::Time::isSimTime() ? 0.0 : commandStamp);
@@ -345,13 +378,27 @@ void PhantomBridge::tick(double now) {
   }
   lastStatus_ = status;
 
+  Eigen::Vector3d shown = force;
+  ros::Time shownStamp = ros::Time::now();
+  if (servoLink_ && deviceRenders_) {  // what the servo loop renders (before the device's own clamp)
+    ServoRenderTick servoTick;
+    if (servoLink_->renderer()->latest(servoTick)) {
+      lastServoForce_ = servoTick.deviceForce;
+      lastServoStamp_ = servoTick.stamp;
+    }
+    if (servoLink_->enabled()) {
+      shown = lastServoForce_;
+      // The stamp of the device read it answers, as that frame's pose carries it.
+      if (lastServoStamp_ > 0.0 && !ros::Time::isSimTime()) shownStamp = ros::Time(lastServoStamp_);
+    }
+  }
   if (renderedPub_.getNumSubscribers() > 0) {
     geometry_msgs::WrenchStamped rendered;
-    rendered.header.stamp = ros::Time::now();
+    rendered.header.stamp = shownStamp;
     rendered.header.frame_id = params_.frameId;
-    rendered.wrench.force.x = force.x();
-    rendered.wrench.force.y = force.y();
-    rendered.wrench.force.z = force.z();
+    rendered.wrench.force.x = shown.x();
+    rendered.wrench.force.y = shown.y();
+    rendered.wrench.force.z = shown.z();
     renderedPub_.publish(rendered);
   }
 }

@@ -8,8 +8,12 @@
 #include <random>
 #include <vector>
 
+#include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/probes.h"
+#include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/core/swept_scene.h"
 #include "test_helpers.h"
 
@@ -108,3 +112,34 @@ TEST(SweptScene, InactiveAndMovedObjects) {
 }
 
 }  // namespace
+
+// clearAt: where a proxy may start. Against brute force on the posed object (the bundled torus, closed, so inside
+// is the same in every frame): a point touching it (within r) or inside it at any depth (bruteForceSignedQuery) is
+// not clear; with a detector the deep search sees inside, without one only a touch is seen.
+TEST(SweptScene, ClearAtIsFalseTouchingOrInsideAnObject) {
+  auto torus = std::make_shared<const TriangleMesh>(loadMesh(CLOD_PACKAGE_DATA_DIR "/meshes/torus.obj"));
+  const Eigen::Isometry3d p0 = pose(0.7, Vec3(1, -1, 2), Vec3(0.2, -0.1, 0.05));
+  auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(torus).build(0.003));
+  const double r = 0.002;
+  SweptScene withDetector, treeOnly;
+  withDetector.add(std::make_shared<const SweptSphereQuery>(
+                       torus, std::make_shared<const ClodDetector>(torus, set, FastLevel::Grid, r)),
+                   p0);
+  treeOnly.add(std::make_shared<const SweptSphereQuery>(torus), p0);
+  const TriangleMesh world = moved(*torus, p0);
+  std::size_t deep = 0, touching = 0, clear = 0;
+  for (const Vec3& p : uniformProbes(world, 3000, 0.01, 9)) {
+    const ContactResult near = bruteForceQuery(world, p, r), signedRef = bruteForceSignedQuery(world, p, r);
+    const bool inside = signedRef.contact && signedRef.inside;
+    EXPECT_EQ(withDetector.clearAt(p, r), !near.contact && !inside) << p.transpose();
+    EXPECT_EQ(treeOnly.clearAt(p, r), !near.contact) << p.transpose();
+    deep += inside && !near.contact;
+    touching += near.contact;
+    clear += !near.contact && !inside;
+  }
+  EXPECT_GT(deep, 100u);
+  EXPECT_GT(touching, 100u);
+  EXPECT_GT(clear, 100u);
+  withDetector.setActive(0, false);
+  EXPECT_TRUE(withDetector.clearAt(p0 * torus->toModel(torus->vertices[0]), r)) << "an inactive object is skipped";
+}

@@ -11,6 +11,7 @@
 #include <functional>
 #include <thread>
 
+#include "box_scene.h"
 #include "clod_haptics/device/openhaptics_device.h"
 // The fake's headers carry the SDK's traps: stdcall attributes (ignored on x86-64) and min/max macros.
 #pragma GCC diagnostic push
@@ -198,6 +199,38 @@ TEST_F(OpenHapticsDeviceTest, ForceInDeviceAxesPlusDampingCappedAtMaxForce) {
   fakeHdSetVelocity(handle_, 0.0, 0.0, 0.0);
   device_->commandForce(Vector3d(5.0, 0.0, 0.0));
   ASSERT_TRUE(waitFor([&] { return std::abs(lastForce(handle_).x() - 0.8) < 1e-12; }))
+      << lastForce(handle_).transpose();
+}
+
+// A servo renderer runs in the servo callback: with no force command at all, the device pressed into the box's
+// top renders the proxy's spring (400 N/m times the depth, straight up: device +y), from the position of the
+// frame that rendered it; the force loop's latency is recorded within the frame. Disabled, the commands come back.
+TEST_F(OpenHapticsDeviceTest, AServoRendererAnswersThePositionOfTheSameFrame) {
+  ServoRenderSettings settings;
+  settings.proxy.radius = clod_haptics_test::kRadius;
+  settings.proxy.stiffness = 400.0;
+  auto renderer = std::make_shared<ServoRenderer>(clod_haptics_test::boxScene(), settings);
+  device_ = std::make_unique<OpenHapticsDevice>();
+  ASSERT_TRUE(device_->attachServoRenderer(renderer));
+  device_->start();
+  handle_ = fakeHdFindDevice("");
+  // ROS (0.01, 0.02, z) is device (10, 1000 z, -20) mm. Above the box, then 1 mm and 1.5 mm into its top.
+  fakeHdSetPosition(handle_, 10.0, 10.0, -20.0);
+  ASSERT_TRUE(waitFor([&] { return fakeHdFrames(handle_) > 5; }));
+  EXPECT_EQ(lastForce(handle_).norm(), 0.0);
+  for (const double depthMm : {1.0, 1.5}) {
+    fakeHdSetPosition(handle_, 10.0, 2.0 - depthMm, -20.0);
+    const unsigned long frame = fakeHdFrames(handle_);
+    ASSERT_TRUE(waitFor([&] { return fakeHdFrames(handle_) >= frame + 2; }));
+    // Within the two frames since the position changed, with no command: the servo loop answered it.
+    EXPECT_LT((lastForce(handle_) - Vector3d(0.0, 0.4 * depthMm, 0.0)).norm(), 1e-8) << lastForce(handle_).transpose();
+  }
+  EXPECT_GT(device_->forceLoopLatency()->count(), 0u);
+  ServoRenderSettings off = settings;
+  off.enabled = false;
+  renderer->configure(off);
+  device_->commandForceFor(Vector3d(0.0, 0.2, 0.0), 0.0);  // ROS y is device -z
+  ASSERT_TRUE(waitFor([&] { return (lastForce(handle_) - Vector3d(0.0, 0.0, -0.2)).norm() < 1e-12; }))
       << lastForce(handle_).transpose();
 }
 

@@ -45,6 +45,14 @@ class SweptScene {
              std::int32_t hintTriangle = -1) const noexcept;
 
   /**
+   * \brief Whether a proxy of radius r may start at the world point p: it touches no active object, and lies
+   * inside none (an object whose query has a detector is searched beyond r for the nearest triangle, as
+   * ClodDetector::query does for a stream that was inside; an object without one is only checked within r).
+   * Allocation-free, noexcept.
+   */
+  bool clearAt(const Vec3& p, double r) const noexcept;
+
+  /**
    * \brief The normal at a world point of triangle t of object i interpolated from its corners' angle-weighted
    * vertex normals (barycentric weights of the point), in the world frame: what force shading renders.
    * Falls back to the face normal on a mesh without adjacency or a degenerate triangle.

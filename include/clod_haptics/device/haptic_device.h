@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -11,6 +12,8 @@
 
 namespace clod_haptics {
 namespace device {
+
+class ServoRenderer;
 
 /** \brief A device could not be opened, started or read; the message says which and why. */
 class DeviceError : public std::runtime_error {
@@ -97,6 +100,15 @@ class HapticDevice {
    * loop (see commandForceFor()); null when the device does not measure it.
    */
   virtual const LatencyHistogram* forceLoopLatency() const { return nullptr; }
+  /**
+   * \brief Hands the device a renderer to run inside its own servo loop (the force computed in the tick that read
+   * the position, no round trip), before start(). While the renderer is enabled its force replaces the commands.
+   * \return false when the device has no servo loop of its own (the caller then runs the renderer itself).
+   */
+  virtual bool attachServoRenderer(std::shared_ptr<ServoRenderer> renderer) {
+    (void)renderer;
+    return false;
+  }
 };
 
 }  // namespace device

@@ -5,6 +5,7 @@
 
 #include "clod_haptics/device/haptic_device.h"
 #include "clod_haptics/device/joint_conventions.h"
+#include "clod_haptics/device/servo_renderer.h"
 #include "clod_haptics/device/triple_buffer.h"
 
 namespace clod_haptics {
@@ -52,6 +53,8 @@ class OpenHapticsDevice : public HapticDevice {
   std::string conditionText() const override;
   ForceRatings ratings() const override { return ratings_; }
   const LatencyHistogram* forceLoopLatency() const override { return &latency_; }
+  /** \brief Runs renderer in the servo callback (before start()); its force then replaces the commands. */
+  bool attachServoRenderer(std::shared_ptr<ServoRenderer> renderer) override;
 
   /** \brief The servo callback's body (scheduler thread); true: run again next tick. Public for the C trampoline. */
   bool servo() noexcept;
@@ -80,7 +83,11 @@ class OpenHapticsDevice : public HapticDevice {
     double poseStamp;  // wall clock seconds of the pose it answers; 0: unknown
   };
 
-  void renderForce(double now, double wallNow, bool calibrated, const double velocity[3], double out[3]) noexcept;
+  void renderForce(double now, double wallNow, bool calibrated, const double transform[16], const double velocity[3],
+                   double out[3]) noexcept;
+  /** The commanded (or servo-rendered) force, ROS frame; false when none is to be rendered (zero force). */
+  bool commandedForce(double now, double wallNow, const double transform[16], Eigen::Vector3d& ros) noexcept;
+  Eigen::Vector3d rosPosition(const double transform[16]) const;
   void startScheduler();
   void stopScheduler();
 
@@ -96,6 +103,7 @@ class OpenHapticsDevice : public HapticDevice {
   TripleBuffer<Sample> samples_;    // servo thread -> bridge thread
   TripleBuffer<Command> commands_;  // bridge thread -> servo thread
   LatencyHistogram latency_;        // recorded by the servo thread
+  std::shared_ptr<ServoRenderer> servoRenderer_;  // set before start(); used by the servo thread
   double lastPoseStamp_ = 0.0;      // servo thread
   std::uint64_t frames_ = 0;        // servo thread
   std::atomic<bool> stopping_{false};

@@ -13,6 +13,7 @@
 #include "clod_haptics/device/force_safety.h"
 #include "clod_haptics/device/haptic_device.h"
 #include "clod_haptics/device/openhaptics_device.h"
+#include "clod_haptics/ros/servo_render_link.h"
 
 namespace clod_haptics {
 namespace device {
@@ -25,6 +26,12 @@ struct PhantomBridgeParams {
   ForceSafetyParams safety;       ///< clamp, rate limit, stale timeout
   /** \brief Seconds without a state (device errors, no frames; calibration excepted) before the bridge gives up. */
   double deviceTimeout = 1.0;
+  /**
+   * \brief Render the proxy in the device's servo loop against the detector's mesh (ServoRenderLink), so the force
+   * answers the position of the same servo tick; false, or when it cannot run: render ~force_feedback.
+   */
+  bool servoRender = true;
+  std::string detector = "/detector";  ///< the detector whose parameters servo rendering follows
 };
 
 /** \brief Makes the OpenHaptics device; empty in a build without OpenHaptics. */
@@ -37,7 +44,9 @@ using OpenHapticsFactory = std::function<std::unique_ptr<HapticDevice>(const Ope
  *   publishes  <name>/pose          geometry_msgs/PoseStamped, metres, every servo tick (1 kHz)
  *              <name>/button        sensor_msgs/Joy, buttons = [grey, white], on change (latched)
  *              <name>/joint_states  sensor_msgs/JointState waist, shoulder, elbow, yaw, pitch, roll
- *              ~rendered_force      geometry_msgs/WrenchStamped, the force the device got (when subscribed)
+ *              ~rendered_force      geometry_msgs/WrenchStamped, the force the device got (when subscribed); with
+ *                                   servo rendering in the device's loop, the proxy's force before the device's clamp,
+ *                                   stamped as the pose of the servo frame it answers
  *   subscribes <name>/force_feedback geometry_msgs/WrenchStamped, newtons, in the pose frame
  * The drivers use omni_msgs/OmniButtonEvent and omni_msgs/OmniFeedback for the button and force;
  * those are not in Debian, so the same topic names carry the standard types above.
@@ -50,6 +59,12 @@ using OpenHapticsFactory = std::function<std::unique_ptr<HapticDevice>(const Ope
  * it is handed to the device with that stamp, so the device can measure the force loop. A device that
  * fails (condition() Failed, or no state for ~device_timeout outside calibration) stops the bridge:
  * failure() gives the reason and the node exits non-zero, for roslaunch's respawn or required.
+ *
+ * Servo rendering (~servo_render, default true, with a detector running: ~detector names it): the bridge loads
+ * the detector's mesh and runs the god-object proxy where the device is read (ServoRenderLink, ServoRenderer):
+ * in OpenHaptics' servo callback, or in this thread for a device without one (simulated). The force then
+ * answers the position of the same tick, and <name>/force_feedback is rendered only while the detector's
+ * force_model is penalty. The detector still answers every pose for contacts, markers and its own ~proxy.
  */
 class PhantomBridge {
  public:
@@ -95,6 +110,9 @@ class PhantomBridge {
   void noState(double now);
   void fail(const std::string& reason);
   void checkRatings();
+  void startServoRender();
+  /** The force to hand the device this tick: the servo renderer's (devices without a servo loop) or the topic's. */
+  ForceCommand nextCommand(double now, const DeviceState* state, double& commandStamp);
 
   ros::NodeHandle nh_;
   ros::NodeHandle pnh_;
@@ -107,6 +125,10 @@ class PhantomBridge {
   ros::Publisher jointPub_;
   ros::Publisher renderedPub_;
   ros::Subscriber forceSub_;
+  std::unique_ptr<ServoRenderLink> servoLink_;  // null: servo rendering off
+  bool deviceRenders_ = false;                  // the device runs servoLink_'s renderer in its own servo loop
+  Eigen::Vector3d lastServoForce_ = Eigen::Vector3d::Zero();  // tick thread: the servo loop's latest force
+  double lastServoStamp_ = 0.0;                               // and the wall-clock stamp of its device read
 
   std::mutex commandMutex_;
   ForceCommand command_;       // guarded by commandMutex_

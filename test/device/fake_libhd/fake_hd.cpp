@@ -41,6 +41,9 @@ struct Device {
   int buttons = 0;
   bool unplugged = false;
   Clock::time_point unplugAt = Clock::time_point::max();
+  // CLOD_FAKE_HD_PATH: the stylus goes from pathFrom to pathTo and back every pathPeriod seconds (0: it stays).
+  double pathFrom[3] = {0, 0, 0}, pathTo[3] = {0, 0, 0}, pathPeriod = 0.0;
+  Clock::time_point pathStart = Clock::now();
   HDerror persistentError = HD_SUCCESS;
   HDerror oneShotError = HD_SUCCESS;
   HDenum calibration = HD_CALIBRATION_OK;
@@ -158,6 +161,13 @@ void applyEnvironment(Device& d) {
   if (const char* f = std::getenv("CLOD_FAKE_HD_NOMINAL_FORCES")) {
     std::sscanf(f, "%lf,%lf", &d.peakForce, &d.continuousForce);
   }
+  if (const char* p = std::getenv("CLOD_FAKE_HD_PATH")) {
+    double* a = d.pathFrom;
+    double* b = d.pathTo;
+    if (std::sscanf(p, "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &a[0], &a[1], &a[2], &b[0], &b[1], &b[2], &d.pathPeriod) != 7)
+      d.pathPeriod = 0.0;
+    d.pathStart = Clock::now();
+  }
   if (const char* p = std::getenv("CLOD_FAKE_HD_POSITION")) {
     double x = 0, y = 0, z = 0;
     if (std::sscanf(p, "%lf,%lf,%lf", &x, &y, &z) == 3) {
@@ -176,6 +186,11 @@ void beginFrameLocked(Device& d, HHD handle) {
   if (d.frameDepth++ > 0) return;  // nested: the outermost frame read the device already
   if (!d.unplugged && Clock::now() >= d.unplugAt) d.unplugged = true;
   if (d.unplugged) return;  // the frame keeps the last values read: stale
+  if (d.pathPeriod > 0.0) {  // a triangle wave between the path's ends
+    const double phase = std::fmod(std::chrono::duration<double>(Clock::now() - d.pathStart).count() / d.pathPeriod, 1.0);
+    const double w = phase < 0.5 ? 2.0 * phase : 2.0 - 2.0 * phase;
+    for (int k = 0; k < 3; ++k) d.transform[12 + k] = d.pathFrom[k] + w * (d.pathTo[k] - d.pathFrom[k]);
+  }
   std::memcpy(d.frameTransform, d.transform, sizeof d.transform);
   if (d.calibration != HD_CALIBRATION_OK) d.frameTransform[12] += kUncalibratedOffsetMm;
   std::memcpy(d.frameVelocity, d.velocity, sizeof d.velocity);

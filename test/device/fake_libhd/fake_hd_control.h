@@ -9,6 +9,8 @@
 //   CLOD_FAKE_HD_UNPLUG_AFTER_MS  N                   (the device is unplugged N ms after hdInitDevice)
 //   CLOD_FAKE_HD_ERROR         0xCODE[:persistent]    (an error injected at hdInitDevice)
 //   CLOD_FAKE_HD_POSITION      x,y,z                  (stylus position, device frame, millimetres)
+//   CLOD_FAKE_HD_PATH          x0,y0,z0,x1,y1,z1,T    (the stylus goes from the first point to the second and back
+//                                                      every T seconds, millimetres)
 //   CLOD_FAKE_HD_NOMINAL_FORCES  peak,continuous      (HD_NOMINAL_MAX_FORCE, ..._CONTINUOUS_FORCE, newtons)
 
 #include <HD/hd.h>
