@@ -117,10 +117,10 @@ bool SphereBuilderNode::onGetSphereSet(GetSphereSet::Request& request, GetSphere
     toMsg(*set, header, response.sphere_set);
     if (request.brief) {
       response.triangle_counts.reserve(response.sphere_set.spheres.size());
-      for (auto& sphere : response.sphere_set.spheres) {
+      for (const auto& sphere : response.sphere_set.spheres) {
         response.triangle_counts.push_back(static_cast<uint32_t>(sphere.triangles.size()));
-        sphere.triangles = {};
       }
+      response.sphere_set.spheres.clear();
     }
     response.success = true;
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
