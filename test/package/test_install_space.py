@@ -5,8 +5,8 @@ folder on ROS_PACKAGE_PATH) and its tests run there: a gtest of the installed co
 installed sphere_builder node. Their result files are copied beside this one, so their cases are counted
 too; this file's cases: the installed layout, the downstream build, and that both downstream tests reported.
 
-Usage: test_install_space.py --install PREFIX --downstream SRC --work DIR --result XML. PREFIX must hold a
-fresh `catkin_make install` (`make test` runs it first).
+Usage: test_install_space.py PREFIX DOWNSTREAM_SRC WORK_DIR RESULT_XML (positional: catkin's run_tests.py
+takes the options). PREFIX must hold a fresh `catkin_make install` (`make test` runs it first).
 """
 import argparse
 import glob
@@ -96,10 +96,10 @@ def build_and_test(prefix, source, work, results_dir):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--install", required=True)
-    parser.add_argument("--downstream", required=True)
-    parser.add_argument("--work", required=True)
-    parser.add_argument("--result", required=True)
+    parser.add_argument("install", help="the install space (PREFIX)")
+    parser.add_argument("downstream", help="the downstream package's source folder")
+    parser.add_argument("work", help="a scratch folder for its workspace and log")
+    parser.add_argument("result", help="the JUnit file to write")
     args = parser.parse_args()
     prefix, work = os.path.abspath(args.install), os.path.abspath(args.work)
     os.makedirs(work, exist_ok=True)
