@@ -3,7 +3,7 @@
 # the detector nodelet in its manager), on the fake libHD: from the servo callback reading a pose to the servo
 # callback getting the force that answers it (pose -> bridge thread -> /phantom/pose -> detector ->
 # /phantom/force_feedback -> bridge thread -> servo callback). The bridge prints the percentiles when it stops.
-#   scripts/force_loop_latency.sh [seconds (default 30)] [roslaunch args]
+#   bash scripts/force_loop_latency.sh [seconds (default 30)] [roslaunch args]
 # after sourcing the workspace's devel/setup.bash (phantom_bridge_fake_hd is a build-tree binary). The fake
 # stylus rests 1 mm inside the bundled torus, so every pose is in contact. Own ROS master on a free port.
 # A benchmark: it prints figures and never fails on them.
