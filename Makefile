@@ -13,7 +13,7 @@ export ROS_LOG_DIR := $(BUILD)/ros_home/log
 
 # Debian packages the package needs (ROS 1 from Debian, no /opt/ros).
 APT_ROS := ros-base-dev python3-dynamic-reconfigure python3-rostest rosbash libtf2-ros-dev libgtest-dev \
-  libeigen3-dev libassimp-dev rviz python3-geometry-msgs python3-visualization-msgs
+  libeigen3-dev libassimp-dev rviz python3-geometry-msgs python3-visualization-msgs catkin-lint
 # Python modules the tests, the demo and the scripts import beyond ROS (scripts/soak.py, which
 # test/rostest/soak_short.test runs: numpy). `../shared/tools/check-deps` checks that nothing is missing.
 APT_PYTHON := python3-numpy
@@ -21,8 +21,13 @@ APT_SCREENSHOT := xvfb xauth imagemagick
 APT_BENCH := libcgal-dev libfcl-dev libembree-dev libbenchmark-dev python3-matplotlib python3-numpy
 
 CATKIN := cd $(WS) && catkin_make -j$(JOBS) --cmake-args -DCMAKE_BUILD_TYPE=Release $(CMAKE_EXTRA) --make-args
-SETUP := source $(WS)/devel/setup.bash
-TOOL := $(WS)/devel/lib/clod_haptics/clod_tool
+# INSTALL=1: `make build` also installs (catkin_make install: .build/ws/install), and `make demo`, `make demo-core`
+# run from that install space instead of the devel space.
+INSTALL_ON := $(filter-out 0 no false,$(INSTALL))
+SPACE := $(WS)/$(if $(INSTALL_ON),install,devel)
+SETUP := source $(SPACE)/setup.bash
+TOOL := $(SPACE)/lib/clod_haptics/clod_tool
+CONTACT_SUMMARY := $(if $(INSTALL_ON),$(SPACE)/lib/clod_haptics/contact_summary.py,$(ROOT)/scripts/contact_summary.py)
 DEMO_MESH := $(ROOT)/data/meshes/torus.obj
 
 .PHONY: all deps deps-screenshot deps-bench build test demo demo-core clean bench
@@ -57,7 +62,8 @@ BENCH_SHARED_DIR ?= $(if $(CLOD_SHARED_DIR),$(CLOD_SHARED_DIR),$(abspath $(ROOT)
 BENCH_QUICK_ON := $(filter-out 0 no false,$(BENCH_QUICK))
 BENCH_OUT := $(if $(BENCH_QUICK_ON),$(ROOT)/bench/results/tmp/quick,$(ROOT)/bench/results)
 bench: deps deps-bench
-	@mkdir -p $(BENCH_WS)/src $(ROS_HOME) $(BENCH_OUT) && ln -sfn $(ROOT) $(BENCH_WS)/src/clod_haptics
+	@mkdir -p $(BENCH_OUT)
+	$(call link_package,$(BENCH_WS))
 	@echo "== building clod_bench in $(BENCH_WS) (log: $(BUILD)/bench_build.log) =="
 	@cd $(BENCH_WS) && catkin_make clod_bench -j$(JOBS) --cmake-args -DCMAKE_BUILD_TYPE=Release \
 	  -DCLOD_BUILD_BENCH=ON -DCATKIN_ENABLE_TESTING=OFF > $(BUILD)/bench_build.log 2>&1 || \
@@ -72,22 +78,41 @@ bench: deps deps-bench
 SCENE_BENCH_WS := $(BUILD)/scene_bench_ws
 .PHONY: scene-bench
 scene-bench: deps
-	@mkdir -p $(SCENE_BENCH_WS)/src $(ROS_HOME) && ln -sfn $(ROOT) $(SCENE_BENCH_WS)/src/clod_haptics
+	$(call link_package,$(SCENE_BENCH_WS))
 	@cd $(SCENE_BENCH_WS) && catkin_make scene_bench -j$(JOBS) --cmake-args -DCMAKE_BUILD_TYPE=Release \
 	  -DCLOD_BUILD_SCENE_BENCH=ON -DCATKIN_ENABLE_TESTING=OFF > $(BUILD)/scene_bench_build.log 2>&1 || \
 	  { tail -40 $(BUILD)/scene_bench_build.log; exit 1; }
 	@$(SCENE_BENCH_WS)/devel/lib/clod_haptics/scene_bench --shared $(BENCH_SHARED_DIR) $(SCENE_BENCH_ARGS) 2>&1 | \
 	  tee $(BUILD)/scene_bench_run.log; exit $${PIPESTATUS[0]}
 
-$(WS)/src/clod_haptics:
-	@mkdir -p $(WS)/src $(ROS_HOME)
-	@ln -sfn $(ROOT) $(WS)/src/clod_haptics
+# A workspace's src/clod_haptics links $(PKG_DIR), a directory holding a link to each top-level entry of the
+# repository except .build and .git: the package root seen by catkin, rospack, rosrun and roslaunch then does
+# not contain the workspace, so `find -L` (rosrun) walks the package once, with no "File system loop".
+# package.xml and nodelet_plugins.xml are hard links (install() copies a symlink as a symlink), and
+# $(PKG_DIR)/../shared is the repository's ../shared, so `$(find clod_haptics)/../shared` still resolves.
+# Refreshed on every call (new entries linked, removed ones dropped); $(1) is the workspace.
+PKG_DIR := $(BUILD)/pkg/clod_haptics
+define link_package
+	@mkdir -p $(1)/src $(PKG_DIR) $(ROS_HOME)
+	@cd $(PKG_DIR) && find . -maxdepth 1 -xtype l -delete && \
+	  for f in $(ROOT)/* $(ROOT)/.[!.]*; do \
+	    n=$${f##*/}; case $$n in .build|.git|'.[!.]*') continue;; package.xml|nodelet_plugins.xml) \
+	      [ $$n -ef $$f ] || ln -f $$f $$n; continue;; esac; \
+	    [ "$$(readlink $$n)" = "$$f" ] || ln -sfn $$f $$n; \
+	  done && ln -sfn $(abspath $(ROOT)/../shared) $(BUILD)/pkg/shared
+	@[ "$$(readlink $(1)/src/clod_haptics)" = "$(PKG_DIR)" ] || { rm -rf $(1)/src/clod_haptics; ln -sfn $(PKG_DIR) $(1)/src/clod_haptics; }
+endef
 
-build: deps $(WS)/src/clod_haptics
-	@$(CATKIN) all
+.PHONY: link-package
+link-package:
+	$(call link_package,$(WS))
 
-test: deps $(WS)/src/clod_haptics
-	@$(CATKIN) all tests
+build: deps link-package
+	@$(CATKIN) all $(if $(INSTALL_ON),install)
+
+# The install space is refreshed first: test/package/test_install_space.py builds test/downstream against it.
+test: deps link-package
+	@$(CATKIN) all tests install | grep -v -E '^-- (Installing|Up-to-date|Set runtime path)'; exit $${PIPESTATUS[0]}
 	@rm -rf $(WS)/build/test_results
 	@$(SETUP) && cd $(WS) && catkin_make -j1 run_tests > $(BUILD)/run_tests.log 2>&1; \
 	  grep -E '^\[ +(OK|FAILED|SKIPPED) +\]|RESULT:|FAILURE|ERROR' $(BUILD)/run_tests.log | grep -v '^\[ *OK' | tail -60 || true
@@ -99,10 +124,10 @@ test: deps $(WS)/src/clod_haptics
 # (exit 1 if poses went unanswered or the replay did not end). Its own master on a free port;
 # the launch log goes to .build/demo.log.
 demo: build
-	@echo "== clod_haptics demo: bundled stylus bag -> bag_replay -> detector over $(DEMO_MESH) (log: $(BUILD)/demo.log) =="
+	@echo "== clod_haptics demo ($(SPACE)): bundled stylus bag -> bag_replay -> detector over $(DEMO_MESH) (log: $(BUILD)/demo.log) =="
 	@port=$${DEMO_PORT:-$$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')} && \
 	  $(SETUP) && export ROS_MASTER_URI=http://localhost:$$port CLOD_BAG_WAIT_FOR_SUBSCRIBERS=2 && \
-	  timeout -k 10 180 python3 $(ROOT)/scripts/contact_summary.py --timeout 150 --log $(BUILD)/demo.log -- \
+	  timeout -k 10 180 python3 $(CONTACT_SUMMARY) --timeout 150 --log $(BUILD)/demo.log -- \
 	  roslaunch -p $$port clod_haptics clod_haptics.launch device:=bag rviz:=false
 
 # The core alone, no ROS master: a CLOD sweep of the bundled mesh.
@@ -192,7 +217,8 @@ fuzz: fuzz-build
 # The last line is count_test_results.py's `N passed, N failed` over the sanitizer workspace; the target exits
 # non-zero when a case failed, a test produced no result, or any process wrote a sanitizer report.
 test-sanitize: deps
-	@mkdir -p $(SAN_WS)/src $(BUILD)/ros_home-sanitize && ln -sfn $(ROOT) $(SAN_WS)/src/clod_haptics
+	@mkdir -p $(BUILD)/ros_home-sanitize
+	$(call link_package,$(SAN_WS))
 	@echo "== building the suite with ASan+UBSan in $(SAN_WS) (log: $(BUILD)/sanitize_build.log)"
 	@t0=$$(date +%s); cd $(SAN_WS) && catkin_make -j$(JOBS) --cmake-args -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCLOD_SANITIZE=ON \
 	  $(CMAKE_EXTRA) --make-args all tests > $(BUILD)/sanitize_build.log 2>&1 || { tail -30 $(BUILD)/sanitize_build.log; exit 1; }; \

@@ -2,7 +2,7 @@
 # Checksums of what the core produces: the sphere sets clod_tool builds (three clusterings, three distances)
 # and the answers it gives (three modes, three fast levels) on fixed probes, on the meshes in ../shared/data.
 # A refactor that must not change results prints the same lines before and after; the timings are not in them.
-# Usage: bench/checksums.sh [path/to/clod_tool]   (default: the one `make build` made)
+# Usage: bash bench/checksums.sh [path/to/clod_tool]   (default: the one `make build` made)
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 tool=${1:-$here/.build/ws/devel/lib/clod_haptics/clod_tool}

@@ -3,7 +3,7 @@
 # the detector nodelet in its manager), on the fake libHD: from the servo callback reading a pose to the servo
 # callback getting the force that answers it (pose -> bridge thread -> /phantom/pose -> detector ->
 # /phantom/force_feedback -> bridge thread -> servo callback). The bridge prints the percentiles when it stops.
-#   scripts/force_loop_latency.sh [seconds (default 30)] [roslaunch args]
+#   bash scripts/force_loop_latency.sh [seconds (default 30)] [roslaunch args]
 # after sourcing the workspace's devel/setup.bash (phantom_bridge_fake_hd is a build-tree binary). The fake
 # stylus goes down into the top of the bundled torus and back every 2 s, from 8 mm above it to 3 mm into it, so
 # the proxy slides and holds the surface half of the time. With servo rendering (the default: the bridge runs

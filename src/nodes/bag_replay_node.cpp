@@ -4,8 +4,10 @@
 #include <ros/ros.h>
 
 #include "clod_haptics/ros/bag_replay.h"
+#include "clod_haptics/ros/node_main.h"
 
 int main(int argc, char** argv) {
+  clod_haptics::lineBufferStdout();
   ros::init(argc, argv, "bag_replay");
   ros::NodeHandle nh;
   ros::NodeHandle pnh("~");

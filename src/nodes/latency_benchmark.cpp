@@ -26,6 +26,7 @@
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/ros/mesh_resource.h"
+#include "clod_haptics/ros/node_main.h"
 
 namespace {
 
@@ -300,6 +301,7 @@ void LatencyBenchmark::report(const RunResult& run) const {
 }  // namespace
 
 int main(int argc, char** argv) {
+  clod_haptics::lineBufferStdout();
   ros::init(argc, argv, "latency_benchmark");
   ros::NodeHandle nh;  // the node runs while a NodeHandle exists
   Settings settings;

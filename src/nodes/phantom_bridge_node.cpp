@@ -5,6 +5,7 @@
 
 #include <cstdio>
 
+#include "clod_haptics/ros/node_main.h"
 #include "clod_haptics/ros/phantom_bridge.h"
 #ifdef CLOD_WITH_OPENHAPTICS
 #include "clod_haptics/device/openhaptics_device.h"
@@ -12,6 +13,7 @@
 
 int main(int argc, char** argv) {
   using clod_haptics::device::PhantomBridge;
+  clod_haptics::lineBufferStdout();
   ros::init(argc, argv, "phantom_bridge");
   ros::NodeHandle nh;
   ros::NodeHandle pnh("~");

@@ -2,6 +2,7 @@
 // and frames moving on a circle on /tf. Debian's ROS has no static_transform_publisher binary; a real
 // setup gets these frames from its robot, tracker or device driver instead.
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -70,6 +71,7 @@ geometry_msgs::TransformStamped toMsg(const Frame& f, double dx, double dy, doub
 }  // namespace
 
 int main(int argc, char** argv) {
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);  // INFO lines live under roslaunch (see ros/node_main.h)
   ros::init(argc, argv, "scene_frames");
   ros::NodeHandle pnh("~");
   std::vector<Frame> fixed, moving;

@@ -115,6 +115,13 @@ bool SphereBuilderNode::onGetSphereSet(GetSphereSet::Request& request, GetSphere
     header.frame_id = frameId_;
     header.stamp = ros::Time::now();
     toMsg(*set, header, response.sphere_set);
+    if (request.brief) {
+      response.triangle_counts.reserve(response.sphere_set.spheres.size());
+      for (const auto& sphere : response.sphere_set.spheres) {
+        response.triangle_counts.push_back(static_cast<uint32_t>(sphere.triangles.size()));
+      }
+      response.sphere_set.spheres.clear();
+    }
     response.success = true;
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     std::ostringstream text;

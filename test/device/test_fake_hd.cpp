@@ -13,7 +13,7 @@
 #pragma GCC diagnostic ignored "-Wattributes"  // HDCALLBACK and HDAPIENTRY are stdcall on Linux
 #include <HDU/hduError.h>
 
-#include "fake_hd_control.h"
+#include "fake_libhd/fake_hd_control.h"
 #pragma GCC diagnostic pop
 #undef min
 #undef max

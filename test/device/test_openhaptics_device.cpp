@@ -16,7 +16,7 @@
 // The fake's headers carry the SDK's traps: stdcall attributes (ignored on x86-64) and min/max macros.
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wattributes"
-#include "fake_hd_control.h"
+#include "fake_libhd/fake_hd_control.h"
 #pragma GCC diagnostic pop
 #undef min
 #undef max

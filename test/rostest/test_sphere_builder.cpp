@@ -81,6 +81,35 @@ TEST(SphereBuilder, RoundTripMatchesTheCoreCountAndShrinksWithDistance) {
   }
 }
 
+TEST(SphereBuilder, BriefRequestGivesSizesWithoutTheSpheres) {
+  ASSERT_TRUE(ros::service::waitForService(kService, ros::Duration(clod_haptics_test::scaled(60.0))));
+  const double d = 0.02;
+  const ClodSphereSet expected = referenceBuilder().build(d);
+  GetSphereSet brief;
+  brief.request.brief = true;
+  ASSERT_TRUE(call(d, brief));
+  ASSERT_TRUE(brief.response.success) << brief.response.message;
+  const SphereSet& msg = brief.response.sphere_set;
+  EXPECT_TRUE(msg.spheres.empty());
+  ASSERT_EQ(brief.response.triangle_counts.size(), expected.size());
+  EXPECT_EQ(msg.stats.spheres, expected.size());
+  EXPECT_EQ(msg.stats.triangles, referenceMesh()->size());
+  EXPECT_DOUBLE_EQ(msg.distance, d);
+  std::size_t total = 0;
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(brief.response.triangle_counts[i], expected.offsets[i + 1] - expected.offsets[i]) << "sphere " << i;
+    total += brief.response.triangle_counts[i];
+  }
+  EXPECT_GE(total, referenceMesh()->size()) << "every triangle is wrapped by at least one sphere";
+  // The default request still carries the lists (what the detector asks for), and no counts.
+  GetSphereSet full;
+  ASSERT_TRUE(call(d, full));
+  EXPECT_TRUE(full.response.triangle_counts.empty());
+  EXPECT_EQ(fromMsg(full.response.sphere_set).triangles, expected.triangles);
+  EXPECT_LT(ros::serialization::serializationLength(brief.response) * 4,
+            ros::serialization::serializationLength(full.response));
+}
+
 TEST(SphereBuilder, BadRequestsAreRefusedAndTheNodeKeepsServing) {
   ASSERT_TRUE(ros::service::waitForService(kService, ros::Duration(clod_haptics_test::scaled(60.0))));
   for (double bad :

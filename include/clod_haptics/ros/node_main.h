@@ -2,10 +2,17 @@
 
 #include <ros/ros.h>
 
+#include <cstdio>
 #include <exception>
 #include <memory>
 
 namespace clod_haptics {
+
+/**
+ * \brief Makes stdout line-buffered, so a node's INFO lines appear as they are logged when roslaunch (or a
+ * pipe, or a file) takes its output: stdout is block-buffered there and would hold them until exit.
+ */
+inline void lineBufferStdout() { std::setvbuf(stdout, nullptr, _IOLBF, 0); }
 
 /**
  * \brief The main of a standalone node around a glue class T (constructed from the node handle and the
@@ -14,6 +21,7 @@ namespace clod_haptics {
  */
 template <class T>
 int runNode(int argc, char** argv, const char* name, unsigned threads = 1) {
+  lineBufferStdout();
   ros::init(argc, argv, name);
   ros::NodeHandle nh;
   ros::NodeHandle pnh("~");
