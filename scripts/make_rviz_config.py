@@ -30,19 +30,20 @@ def nice_step(x):
     return max(m * p for m in (1.0, 2.0, 5.0) if m * p <= x)
 
 
-def render(template, lo, hi, frame, marker, focus=None, zoom=1.0, yaw=0.8, pitch=0.55):
-    """The template's text with the camera, grid and axes fitted to the box [lo, hi]."""
+def render(template, lo, hi, frame, marker, focus=None, zoom=1.0, yaw=0.8, pitch=0.55, cut=None):
+    """The template's text with the camera, grid and axes fitted to the box [lo, hi]; cut (m): the near clip plane
+    that far in front of the focal point, slicing the mesh there (a section through the contact)."""
     size = max(math.dist(lo, hi), 1e-6)
     centre = [(a + b) / 2.0 for a, b in zip(lo, hi)]
     focal = focus if focus is not None else centre
-    distance = 1.15 * (size / 2.0) / math.tan(FIELD_OF_VIEW / 2.0) / zoom
+    distance = 0.85 * (size / 2.0) / math.tan(FIELD_OF_VIEW / 2.0) / zoom
     cell = nice_step(size / 6.0)
     values = {
         "FIXED_FRAME": frame,
         "FOCAL_X": focal[0], "FOCAL_Y": focal[1], "FOCAL_Z": focal[2],
         "DISTANCE": distance,
         "FOCAL_SHAPE": 0.02 * size / zoom,
-        "NEAR_CLIP": max(1e-4, 0.002 * distance),
+        "NEAR_CLIP": distance - cut if cut is not None else max(1e-4, 0.002 * distance),
         "PITCH": pitch, "YAW": yaw,
         "CELL_SIZE": cell,
         "LINE_WIDTH": 0.005 * size,

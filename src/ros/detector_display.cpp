@@ -44,7 +44,7 @@ DetectorDisplay::DetectorDisplay(std::string sceneFrame,
 }
 
 double DetectorDisplay::arrowLength(double radius) const {
-  return modelSize_ > 0.0 ? 0.12 * modelSize_ : std::max(8.0 * radius, 0.01);
+  return modelSize_ > 0.0 ? 0.08 * modelSize_ : std::max(8.0 * radius, 0.01);
 }
 
 void DetectorDisplay::setSwitches(const DisplaySwitches& switches) {

@@ -72,7 +72,7 @@ StylusPlacement placementForBounds(const Eigen::AlignedBox3d& box) {
   const double size = std::max(box.diagonal().norm(), 1e-6);
   p.start = box.center();
   p.start.z() = box.max().z() + 0.15 * size;
-  p.markerScale = 0.2 * size;
+  p.markerScale = 0.1 * size;
   p.maxSpeed = 0.5 * size;
   return p;
 }

@@ -62,7 +62,7 @@ TEST(StylusPlacement, StartsAboveTheBoxCentreSizedToIt) {
   EXPECT_EQ(p.start.x(), 0.0);
   EXPECT_EQ(p.start.y(), 1.0);
   EXPECT_GT(p.start.z(), 4.0);  // outside the box: the stylus starts off the mesh
-  EXPECT_NEAR(p.markerScale, 0.2 * std::sqrt(12.0), 1e-12);
+  EXPECT_NEAR(p.markerScale, 0.1 * std::sqrt(12.0), 1e-12);
   EXPECT_GT(p.maxSpeed, 0.0);
 }
 
