@@ -40,6 +40,11 @@ class MarkerStylusTest : public ::testing::Test {
     feedbackPub_ = nh.advertise<visualization_msgs::InteractiveMarkerFeedback>("/stylus_marker/feedback", 10);
     spinner_.start();
   }
+  void TearDown() override {  // no callback may run once the members it writes are gone
+    spinner_.stop();
+    poseSub_.shutdown();
+    contactSub_.shutdown();
+  }
 
   void onPose(const geometry_msgs::PoseStampedConstPtr& m) {
     std::lock_guard<std::mutex> lock(mutex_);

@@ -39,6 +39,10 @@ class SetTool : public ::testing::Test {
     spinner_.start();
     ASSERT_TRUE(waitUntil([] { return ros::service::exists("/detector/set_parameters", false); }, 30.0));
   }
+  void TearDown() override {  // no callback may run once requested_ is gone
+    spinner_.stop();
+    statusSub_.shutdown();
+  }
   void onStatus(const clod_haptics::DetectorStatusConstPtr& s) { requested_ = s->requested_distance; }
 
   ros::Subscriber statusSub_;
