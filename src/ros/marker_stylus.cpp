@@ -71,7 +71,7 @@ StylusPlacement placementForBounds(const Eigen::AlignedBox3d& box) {
   StylusPlacement p;
   const double size = std::max(box.diagonal().norm(), 1e-6);
   p.start = box.center();
-  p.start.z() = box.max().z() + 0.15 * size;
+  p.start.z() = box.max().z() + 0.08 * size;  // in the launch file's view, above the mesh
   p.markerScale = 0.1 * size;
   p.maxSpeed = 0.5 * size;
   return p;
