@@ -114,7 +114,7 @@ demo-core: build
 # RViz under a virtual X server (xvfb-run), the pipeline on MESH (default the bundled torus; SCALE file units to
 # metres, or SIZE=0.15 for a .off/.obj whose largest side becomes 0.15 m) with the mouse stylus (device:=marker)
 # driven into it, the screen grabbed with ImageMagick's import: SHOT (default .build/screenshot.png, log beside it).
-#   make screenshot MESH=../shared/data/meshes/elephant.off SIZE=0.15 SHOT=docs/elephant.png
+#   make screenshot MESH=../shared/data/meshes/elephant.off SIZE=0.15 SHOT=doc/screenshot_elephant.png
 .PHONY: screenshot
 SHOT ?= $(BUILD)/screenshot.png
 screenshot: build deps-screenshot
