@@ -13,7 +13,8 @@ export ROS_LOG_DIR := $(BUILD)/ros_home/log
 
 # Debian packages the package needs (ROS 1 from Debian, no /opt/ros).
 APT_ROS := ros-base-dev python3-dynamic-reconfigure python3-rostest rosbash libtf2-ros-dev libgtest-dev \
-  libeigen3-dev libassimp-dev rviz python3-geometry-msgs python3-visualization-msgs catkin-lint
+  libeigen3-dev libassimp-dev rviz python3-geometry-msgs python3-visualization-msgs catkin-lint \
+  libinteractive-markers-dev
 # Python modules the tests, the demo and the scripts import beyond ROS (scripts/soak.py, which
 # test/rostest/soak_short.test runs: numpy). `../shared/tools/check-deps` checks that nothing is missing.
 APT_PYTHON := python3-numpy
@@ -135,11 +136,15 @@ demo-core: build
 	@echo "== clod_haptics core demo: CLOD sweep of the bundled mesh ($(DEMO_MESH)) =="
 	@$(TOOL) sweep --mesh $(DEMO_MESH) --normalize --distances 0,0.01,0.02,0.03,0.04,0.05,0.06,0.07,0.08
 
-# RViz under a virtual X server (xvfb-run), the pipeline on the bundled torus with a stylus pose that
-# touches it, the screen grabbed with ImageMagick's import: .build/screenshot.png (log beside it).
+# RViz under a virtual X server (xvfb-run), the pipeline on MESH (default the bundled torus; SCALE file units to
+# metres, or SIZE=0.15 for a .off/.obj whose largest side becomes 0.15 m) with the mouse stylus (device:=marker)
+# driven into it, the screen grabbed with ImageMagick's import: SHOT (default .build/screenshot.png, log beside it).
+#   make screenshot MESH=../shared/data/meshes/elephant.off SIZE=0.15 SHOT=doc/screenshot_elephant.png
 .PHONY: screenshot
+SHOT ?= $(BUILD)/screenshot.png
 screenshot: build deps-screenshot
-	@$(SETUP) && $(ROOT)/scripts/screenshot.sh $(BUILD)/screenshot.png
+	@$(SETUP) && $(if $(SIZE),SIZE=$(SIZE)) $(ROOT)/scripts/screenshot.sh $(abspath $(SHOT)) \
+	  $(if $(MESH),$(abspath $(MESH)),$(DEMO_MESH)) $(if $(SCALE),$(SCALE),1.0)
 
 # Soak: the shipped launch/clod_haptics.launch with its defaults under a 1 kHz pose stream for SOAK_SECONDS
 # (default 600) with ~markers subscribed and a `dynparam set` process started every second (scripts/soak.py).

@@ -1,6 +1,7 @@
 #include "clod_haptics/ros/detector_display.h"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 #include "clod_haptics/ros/markers.h"
@@ -11,6 +12,21 @@ namespace {
 const ClodSphereSet& spheresOf(const ClodDetector* level) {
   static const ClodSphereSet empty;
   return level ? *level->spheres() : empty;
+}
+
+/**
+ * A colour per level, from its clustering distance d: the hue turns by a third per doubling of d (1 mm blue), so a
+ * new level shows as a new colour; translucent, so the mesh stays visible through the spheres.
+ */
+std_msgs::ColorRGBA levelColor(double distance) {
+  const double turns = distance > 0.0 ? std::log2(distance / 0.001) / 3.0 : 0.0;
+  const double hue = 6.0 * (turns - std::floor(turns));  // [0, 6): 0 blue, 2 green, 4 red
+  const auto channel = [hue](double centre) {
+    double d = std::fabs(hue - centre);
+    d = std::min(d, 6.0 - d);
+    return static_cast<float>(std::clamp(2.0 - d, 0.0, 1.0));
+  };
+  return makeColor(channel(4.0), channel(2.0), channel(0.0), 0.12f);
 }
 }  // namespace
 
@@ -23,6 +39,12 @@ DetectorDisplay::DetectorDisplay(std::string sceneFrame,
   shownSpheres_.assign(n, 0);
   shownHit_.assign(n, 0);
   shownContact_.assign(n, 0);
+  for (const DisplayObject& o : objects_)
+    if (o.mesh) modelSize_ = std::max(modelSize_, o.mesh->diagonal());
+}
+
+double DetectorDisplay::arrowLength(double radius) const {
+  return modelSize_ > 0.0 ? 0.08 * modelSize_ : std::max(8.0 * radius, 0.01);
 }
 
 void DetectorDisplay::setSwitches(const DisplaySwitches& switches) {
@@ -60,20 +82,28 @@ void DetectorDisplay::update(const std::vector<std::shared_ptr<const ClodDetecto
   }
   if (!newPose) return;
   shownSeq_ = frame.seq;
+  appendPointer(frame, out);
+}
+
+void DetectorDisplay::appendPointer(const DisplayFrame& frame, visualization_msgs::MarkerArray& out) const {
   std_msgs::Header header;
   header.frame_id = sceneFrame_;
+  const bool touching = !frame.contacts.empty();
+  out.markers.push_back(switches_.contact && touching ? forceMarker(frame.pointer, frame.force,
+                                                                    arrowLength(frame.radius), header)
+                                                      : deleteMarker(marker_ns::kForce, 0, header));
   if (!switches_.pointer) {
     out.markers.push_back(deleteMarker(marker_ns::kPointer, 0, header));
     out.markers.push_back(deleteMarker(marker_ns::kProxy, 0, header));
     return;
   }
-  const bool touching = !frame.contacts.empty();
+  // The device point: translucent, so the contact point inside it shows.
   out.markers.push_back(
       pointerMarker(frame.pointer, frame.radius, header,
-                    touching ? makeColor(1.0f, 0.2f, 0.2f, 0.9f) : makeColor(0.1f, 0.9f, 0.2f, 0.9f)));
-  // The proxy stays on the surface while the device point sinks in: drawn half transparent beside it.
+                    touching ? makeColor(1.0f, 0.2f, 0.2f, 0.55f) : makeColor(0.1f, 0.9f, 0.2f, 0.7f)));
+  // The proxy stays on the surface while the device point sinks in: drawn beside it in blue.
   out.markers.push_back(frame.haveProxy ? pointerMarker(frame.proxy, frame.radius, header,
-                                                        makeColor(0.2f, 0.4f, 1.0f, 0.6f), marker_ns::kProxy)
+                                                        makeColor(0.2f, 0.45f, 1.0f, 0.8f), marker_ns::kProxy)
                                         : deleteMarker(marker_ns::kProxy, 0, header));
 }
 
@@ -99,7 +129,7 @@ void DetectorDisplay::appendLevel(std::size_t i, const ClodDetector* level, visu
   const std::size_t first = out.markers.size();
   const ClodSphereSet& set = switches_.spheres ? spheresOf(level) : empty;
   shownSpheres_[i] = appendSphereMarkers(set, nullptr, ns(marker_ns::kSpheres, i).c_str(), objectHeader(i),
-                                         makeColor(0.2f, 0.45f, 1.0f, 0.18f), shownSpheres_[i], out);
+                                         levelColor(set.distance), shownSpheres_[i], out);
   applyOffset(objects_[i].offset, first, out);
   for (std::size_t k = first; k < out.markers.size(); ++k) out.markers[k].frame_locked = true;
   shownLevelIds_[i] = level ? level->id() : 0;
@@ -114,7 +144,7 @@ void DetectorDisplay::appendHits(std::size_t i, const ClodDetector* level, const
   if (hitBuffer_.empty() && shownHit_[i] == 0) return;
   const std::size_t first = out.markers.size();
   shownHit_[i] = appendSphereMarkers(spheresOf(level), &hitBuffer_, ns(marker_ns::kHitSpheres, i).c_str(),
-                                     objectHeader(i), makeColor(1.0f, 0.55f, 0.0f, 0.55f), shownHit_[i], out);
+                                     objectHeader(i), makeColor(1.0f, 0.5f, 0.0f, 0.3f), shownHit_[i], out);
   applyOffset(objects_[i].offset, first, out);
 }
 
@@ -133,7 +163,7 @@ void DetectorDisplay::appendContact(std::size_t i, const DisplayFrame& frame, vi
   std_msgs::Header header;
   header.frame_id = sceneFrame_;
   const std::size_t first = out.markers.size();
-  appendContactMarkers(shown, std::max(8.0 * frame.radius, 0.01), header, out);
+  appendContactMarkers(shown, arrowLength(frame.radius), header, out);
   for (std::size_t k = first; k < out.markers.size(); ++k) out.markers[k].id = static_cast<int>(i);
   shownContact_[i] = contact != nullptr;
 }

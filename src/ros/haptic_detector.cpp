@@ -425,10 +425,12 @@ void HapticDetector::answer(const ros::MessageEvent<const geometry_msgs::PoseSta
   if (out.bruteForce > 0) bruteForce_.fetch_add(1, std::memory_order_relaxed);
   ProxyTick tick;
   const bool proxy = renderProxy(msg, p, radius, out.contact, tick);
-  publishAnswer(msg, p, radius, sceneFromPose, out,
-                std::chrono::duration_cast<std::chrono::nanoseconds>(elapsed).count(), proxy ? &tick : nullptr);
+  const Vec3 force = publishAnswer(msg, p, radius, sceneFromPose, out,
+                                   std::chrono::duration_cast<std::chrono::nanoseconds>(elapsed).count(),
+                                   proxy ? &tick : nullptr);
   if (!ros::Time::isSimTime()) posePath_.record((ros::Time::now() - event.getReceiptTime()).toNSec());
-  if (markersWanted_.load(std::memory_order_relaxed)) keepForDisplay(p, radius, out.contacts, proxy ? &tick : nullptr);
+  if (markersWanted_.load(std::memory_order_relaxed))
+    keepForDisplay(p, radius, out.contacts, proxy ? &tick : nullptr, force);
 }
 
 bool HapticDetector::outsideEverything(const Vec3& p, double radius) {
@@ -473,7 +475,7 @@ bool HapticDetector::renderProxy(const geometry_msgs::PoseStamped& msg, const Ve
   return true;
 }
 
-void HapticDetector::publishAnswer(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius,
+Vec3 HapticDetector::publishAnswer(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius,
                                    const Eigen::Isometry3d& sceneFromPose, const SceneQueryResult& out,
                                    std::int64_t detectionNs, const ProxyTick* proxy) {
   std_msgs::Header header;
@@ -547,6 +549,7 @@ void HapticDetector::publishAnswer(const geometry_msgs::PoseStamped& msg, const 
   contactsPub_.publish(array);
   forcePub_.publish(wrench);
   answered_.fetch_add(1, std::memory_order_relaxed);
+  return force;
 }
 
 void HapticDetector::publishProxyPose(const geometry_msgs::PoseStamped& msg, const std_msgs::Header& header,
@@ -563,7 +566,8 @@ void HapticDetector::publishProxyPose(const geometry_msgs::PoseStamped& msg, con
   proxyPub_.publish(pose);
 }
 
-void HapticDetector::keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts, const ProxyTick* proxy) {
+void HapticDetector::keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts, const ProxyTick* proxy,
+                                    const Vec3& force) {
   // For the markers only: if the display thread is copying it right now, this pose is not drawn rather than
   // waiting for a thread of lower priority. Capacities were reserved at start-up: nothing allocates here.
   std::unique_lock<std::mutex> lock(lastMutex_, std::try_to_lock);
@@ -571,6 +575,7 @@ void HapticDetector::keepForDisplay(const Vec3& p, double radius, std::uint32_t 
   ++last_.seq;
   last_.pointer = p;
   last_.radius = radius;
+  last_.force = force;
   last_.haveProxy = proxy != nullptr;
   if (proxy) last_.proxy = proxy->proxy;
   last_.contacts.assign(contacts_.begin(), contacts_.begin() + contacts);

@@ -99,8 +99,8 @@ void appendContactMarkers(const ContactResult& result, double arrowLength, const
   }
   visualization_msgs::Marker point = baseMarker(marker_ns::kContact, 0, visualization_msgs::Marker::SPHERE, header);
   point.pose.position = toPoint(result.point);
-  point.scale.x = point.scale.y = point.scale.z = 0.25 * arrowLength;
-  point.color = makeColor(1.0f, 0.1f, 0.1f, 1.0f);
+  point.scale.x = point.scale.y = point.scale.z = 0.12 * arrowLength;
+  point.color = makeColor(1.0f, 0.0f, 1.0f, 1.0f);
   out.markers.push_back(std::move(point));
 
   visualization_msgs::Marker arrow = baseMarker(marker_ns::kNormal, 0, visualization_msgs::Marker::ARROW, header);
@@ -111,6 +111,21 @@ void appendContactMarkers(const ContactResult& result, double arrowLength, const
   arrow.scale.z = 0.25 * arrowLength;  // head length
   arrow.color = makeColor(1.0f, 0.9f, 0.0f, 1.0f);
   out.markers.push_back(std::move(arrow));
+}
+
+visualization_msgs::Marker forceMarker(const Vec3& from, const Vec3& force, double lengthPerNewton,
+                                       const std_msgs::Header& header) {
+  const double newtons = force.norm();
+  if (!(newtons > 0.0) || !std::isfinite(newtons) || !from.allFinite()) return deleteMarker(marker_ns::kForce, 0, header);
+  const double length = lengthPerNewton * std::min(newtons, 3.0);
+  visualization_msgs::Marker arrow = baseMarker(marker_ns::kForce, 0, visualization_msgs::Marker::ARROW, header);
+  arrow.points.push_back(toPoint(from));
+  arrow.points.push_back(toPoint(from + (length / newtons) * force));
+  arrow.scale.x = 0.06 * lengthPerNewton;  // shaft and head sized as the normal's, not by the force
+  arrow.scale.y = 0.15 * lengthPerNewton;
+  arrow.scale.z = std::min(0.25 * lengthPerNewton, 0.5 * length);
+  arrow.color = makeColor(0.1f, 0.95f, 0.3f, 1.0f);
+  return arrow;
 }
 
 visualization_msgs::Marker meshResourceMarker(const std::string& resource, const Eigen::Isometry3d& pose, double scale,

@@ -158,6 +158,36 @@ TEST(Markers, ContactShowsPointAndNormalOrClearsThem) {
   EXPECT_EQ(cleared.markers[1].ns, marker_ns::kNormal);
 }
 
+TEST(Markers, ForceIsAnArrowFromThePointScaledPerNewtonAndClearedWhenZero) {
+  const Vec3 from(0.1, 0.2, 0.3);
+  const Vec3 force(0.0, 0.6, 0.8);  // 1 N
+  const Marker m = forceMarker(from, force, 0.03, header());
+  EXPECT_EQ(m.ns, marker_ns::kForce);
+  EXPECT_EQ(m.type, Marker::ARROW);
+  ASSERT_EQ(m.points.size(), 2u);
+  const Vec3 tail(m.points[0].x, m.points[0].y, m.points[0].z), tip(m.points[1].x, m.points[1].y, m.points[1].z);
+  EXPECT_NEAR((tail - from).norm(), 0.0, 1e-15);
+  EXPECT_NEAR((tip - tail - 0.03 * force).norm(), 0.0, 1e-12);
+  // 10 N is drawn as 3 N: the arrow stays within the view.
+  const Marker big = forceMarker(from, 10.0 * force, 0.03, header());
+  EXPECT_NEAR(Vec3(big.points[1].x - from.x(), big.points[1].y - from.y(), big.points[1].z - from.z()).norm(), 0.09,
+              1e-12);
+  EXPECT_EQ(forceMarker(from, Vec3::Zero(), 0.03, header()).action, Marker::DELETE);
+  EXPECT_EQ(forceMarker(from, Vec3(NAN, 0, 0), 0.03, header()).action, Marker::DELETE);
+}
+
+TEST(Markers, ContactPointIsSmallerThanTheArrowAndNotRed) {
+  ContactResult r;
+  r.contact = true;
+  r.point = Vec3(0, 0, 0.01);
+  r.normal = Vec3::UnitZ();
+  visualization_msgs::MarkerArray a;
+  appendContactMarkers(r, 0.02, header(), a);
+  ASSERT_EQ(a.markers.size(), 2u);
+  EXPECT_LT(a.markers[0].scale.x, 0.2 * 0.02);
+  EXPECT_GT(a.markers[0].color.b, 0.5f);  // magenta, unlike the red pointer in contact
+}
+
 TEST(Markers, PointerIsASphereOfTheRadius) {
   const Marker m = pointerMarker(Vec3(1, 2, 3), 0.002, header(), makeColor(0, 1, 0, 1));
   EXPECT_EQ(m.type, Marker::SPHERE);

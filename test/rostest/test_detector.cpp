@@ -633,6 +633,15 @@ TEST(Detector, ProxyNeverStartsDeepInsideTheMesh) {
 TEST(Detector, MarkersShowTheMeshTheLevelTheHitSpheresAndTheContact) {
   DetectorClient& dc = client();
   ASSERT_TRUE(dc.waitReady());
+  // The level's spheres and the spheres hit are off by default (config/detector.yaml): shown here.
+  dynamic_reconfigure::Reconfigure show;
+  for (const char* name : {"show_spheres", "show_hit_spheres"}) {
+    dynamic_reconfigure::BoolParameter b;
+    b.name = name;
+    b.value = true;
+    show.request.config.bools.push_back(b);
+  }
+  ASSERT_TRUE(ros::service::call(dc.ns() + "/set_parameters", show));
   MarkerScene scene(dc.ns() + "/markers");
   // A touching probe, held for a while as a stylus would be.
   Vec3 touching = Vec3::Zero();

@@ -31,6 +31,7 @@ struct DisplayFrame {
   std::uint64_t seq = 0;  ///< 0: no pose yet
   Vec3 pointer = Vec3::Zero();
   double radius = 0.0;
+  Vec3 force = Vec3::Zero();  ///< N, scene frame
   bool haveProxy = false;  ///< force_model proxy: the proxy is drawn beside the pointer
   Vec3 proxy = Vec3::Zero();
   std::vector<SceneContact> contacts;
@@ -40,7 +41,7 @@ struct DisplayFrame {
 
 /** \brief Which markers to show (dynamic_reconfigure's show_* switches). */
 struct DisplaySwitches {
-  bool mesh = true, spheres = true, hitSpheres = true, contact = true, pointer = true;
+  bool mesh = true, spheres = false, hitSpheres = false, contact = true, pointer = true;
 };
 
 /**
@@ -72,10 +73,14 @@ class DetectorDisplay {
   void appendHits(std::size_t object, const ClodDetector* level, const DisplayFrame& frame,
                   visualization_msgs::MarkerArray& out);
   void appendContact(std::size_t object, const DisplayFrame& frame, visualization_msgs::MarkerArray& out);
+  void appendPointer(const DisplayFrame& frame, visualization_msgs::MarkerArray& out) const;
+  /** \brief Length of the normal arrow and of the force arrow per newton: a fraction of the model's size. */
+  double arrowLength(double radius) const;
 
   std::string sceneFrame_;
   std::vector<DisplayObject, Eigen::aligned_allocator<DisplayObject>> objects_;
   bool singleMesh_;
+  double modelSize_ = 0.0;  // largest bounds diagonal of the objects drawn as triangles (0: none)
   DisplaySwitches switches_;
   bool everything_ = true;
   bool meshSwitched_ = false, spheresSwitched_ = false;

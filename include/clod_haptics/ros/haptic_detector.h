@@ -149,10 +149,11 @@ class HapticDetector {
   void adoptPublishedLevels();
   bool isFinal(const ClodDetector& level) const;
   void askForNearLevels(const Vec3& p);
-  void publishAnswer(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius,
+  /** \brief Publishes the contact, the contacts and the force; returns the force (scene frame). */
+  Vec3 publishAnswer(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius,
                      const Eigen::Isometry3d& sceneFromPose, const SceneQueryResult& out, std::int64_t detectionNs,
                      const ProxyTick* proxy);
-  void keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts, const ProxyTick* proxy);
+  void keepForDisplay(const Vec3& p, double radius, std::uint32_t contacts, const ProxyTick* proxy, const Vec3& force);
   void publishProxyPose(const geometry_msgs::PoseStamped& msg, const std_msgs::Header& header,
                         const Eigen::Isometry3d& sceneFromPose, const Vec3& proxy);
   bool renderProxy(const geometry_msgs::PoseStamped& msg, const Vec3& p, double radius, bool touching, ProxyTick& tick);

@@ -24,6 +24,7 @@ constexpr const char* kContact = "contact_point";
 constexpr const char* kNormal = "contact_normal";
 constexpr const char* kPointer = "pointer";
 constexpr const char* kProxy = "proxy";
+constexpr const char* kForce = "force";
 }  // namespace marker_ns
 
 /** \brief An RGBA colour message. */
@@ -68,11 +69,19 @@ visualization_msgs::Marker pointerMarker(const Vec3& p, double radius, const std
                                          const std_msgs::ColorRGBA& color, const char* ns = marker_ns::kPointer);
 
 /**
- * \brief The contact point (a small SPHERE) and the normal (an ARROW from the point, length
- * arrowLength) when result.contact; otherwise two DELETE markers that clear them.
+ * \brief The contact point (a magenta SPHERE of diameter 0.12 * arrowLength, smaller than the pointer it lies in)
+ * and the normal (a yellow ARROW from the point, length arrowLength) when result.contact; otherwise two DELETE
+ * markers that clear them.
  */
 void appendContactMarkers(const ContactResult& result, double arrowLength, const std_msgs::Header& header,
                           visualization_msgs::MarkerArray& out);
+
+/**
+ * \brief The force as a green ARROW in namespace marker_ns::kForce from `from` along force, lengthPerNewton metres
+ * per newton (at most 3 N drawn); a DELETE marker when the force is zero or not finite.
+ */
+visualization_msgs::Marker forceMarker(const Vec3& from, const Vec3& force, double lengthPerNewton,
+                                       const std_msgs::Header& header);
 
 /** \brief A DELETE marker for (ns, id). */
 visualization_msgs::Marker deleteMarker(const char* ns, int id, const std_msgs::Header& header);
