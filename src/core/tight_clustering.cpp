@@ -260,33 +260,37 @@ class PatchJudge {
   double pickCentre(Candidate* cand, int count, double threshold, Vec3& best) const {
     std::stable_sort(cand, cand + count, [](const Candidate& x, const Candidate& y) { return x.lower < y.lower; });
     best = cand[0].centre;
-    double bestExcess = kInfinity;
+    double bestExcess = kInfinity, bestRadius = 0.0;
     for (int j = 0; j < count; ++j) {
       if (cand[j].lower > threshold || cand[j].lower >= bestExcess) continue;
       const double radius = std::sqrt(cand[j].far2);
-      double e =
+      const double e =
           capVolume(radius, std::clamp(radius - surface_.signedDistance(cand[j].centre, radius), 0.0, 2.0 * radius));
-      // The cap sees one side; a ball in a thin part also sticks out on the far side (a plate) or all round (a leg).
-      if (std::isfinite(threshold) && std::isfinite(e) && e <= threshold && e < bestExcess)
-        e = std::max(e, outsideAllRound(cand[j].centre, radius));
       if (std::isfinite(e) && e < bestExcess) {
         bestExcess = e;
+        bestRadius = radius;
         best = cand[j].centre;
       }
     }
+    // The cap sees one side; a ball in a thin part also sticks out on the far side (a plate) or all round (a leg).
+    // Scored for the chosen centre, once its cap passes.
+    if (std::isfinite(threshold) && bestExcess <= threshold)
+      bestExcess = std::max(bestExcess, outsideAllRound(best, bestRadius, threshold));
     return bestExcess;
   }
 
   // The ball's volume beyond the surface on every side, over 4/3 pi, as seen from its centre: along each of kRays
   // directions the part of the radius beyond the first surface crossing, (R^3 - min(s, R)^3) averaged (a solid
   // angle's share of the ball). Counts a region behind a second crossing as outside: an upper estimate.
-  double outsideAllRound(const Vec3& centre, double radius) const {
+  // Stops once the estimate exceeds limit (the answer is then some value above limit, not the estimate).
+  double outsideAllRound(const Vec3& centre, double radius, double limit) const {
     const double r3 = radius * radius * radius;
     double sum = 0.0;
     for (const Vec3& dir : dirs_) {
       double first = radius;
       bvh_.forEachRayHit(centre, dir, first, [&](std::uint32_t, double t) { first = std::min(first, t); });
       sum += r3 - first * first * first;
+      if (sum > limit * kRays) return sum / kRays;  // the rest only adds (each term >= 0)
     }
     return sum / kRays;
   }
