@@ -459,13 +459,9 @@ void ClodDetector::nearestSphereSurface(const Vec3& p, double r, const double& b
     }
     const std::uint32_t left = n + 1, right = node.first;
     const double bl = bound(left), br = bound(right);
-    if (bl <= br) {
-      if (br <= limit) stack[top++] = right;
-      if (bl <= limit) stack[top++] = left;
-    } else {
-      if (bl <= limit) stack[top++] = left;
-      if (br <= limit) stack[top++] = right;
-    }
+    const bool leftFirst = bl <= br;  // the nearer child goes on the stack last, to be searched first
+    if (std::max(bl, br) <= limit) stack[top++] = leftFirst ? right : left;
+    if (std::min(bl, br) <= limit) stack[top++] = leftFirst ? left : right;
   }
 }
 
