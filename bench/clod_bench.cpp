@@ -57,7 +57,7 @@ struct Settings {
   std::string shared;
   std::string out;
   std::set<std::string> meshes;  // empty: all
-  std::set<std::string> sections{"sweep", "peers", "tightness", "growth", "contact", "proxy"};
+  std::set<std::string> sections{"sweep", "spheres", "peers", "tightness", "growth", "contact", "proxy"};
   double r = 0.005;
   std::vector<double> distances{0.0, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.08};
   std::size_t probes = 100000;          // per probe set (near-surface, uniform)
@@ -439,7 +439,7 @@ struct Run {
   Settings s;
   std::vector<Vec3> trajectory;  // raw, 1 kHz
   std::string trajectoryNote;
-  std::unique_ptr<Csv> build, sweep, peers, tight, growth, checks;
+  std::unique_ptr<Csv> build, sweep, spheresMode, peers, tight, growth, checks;
   std::unique_ptr<Csv> contact, startup, models;  // the contact section
 };
 
@@ -577,6 +577,35 @@ void benchMesh(Run& run, const std::string& path) {
         std::cout << "  d=" << d << " " << levelName(level) << " (" << levels[d]->size() << " spheres) done at "
                   << secondsSince(meshStart) << " s\n" << std::flush;
       }
+    }
+  }
+
+  // Spheres mode against the exact mode at every level, through the grid and the hierarchy: the cost per query and
+  // the false contacts (a spheres-mode contact where the exact answer has none) on the near and uniform probes.
+  if (has(s, "spheres")) {
+    for (double d : s.distances) {
+      for (FastLevel level : {FastLevel::Grid, FastLevel::Hierarchy}) {
+        const ClodDetector detector(meshPtr, levels[d], level, level == FastLevel::Grid ? s.r : 0.0);
+        for (std::size_t k = 0; k < 2; ++k) {
+          const ProbeSet& set = sets[k];
+          std::vector<ContactResult> sph(set.points.size()), exact(set.points.size());
+          const Timing ts = timeEach(set.points.size(), 0.5, 2000, [&](std::size_t i) {
+            detector.query(set.points[i], s.r, DetectionMode::Spheres, sph[i]);
+            benchmark::DoNotOptimize(sph[i]);
+          });
+          const Timing te = timeEach(ts.ns.size(), 0.5, ts.ns.size(), [&](std::size_t i) {
+            detector.query(set.points[i], s.r, DetectionMode::Exact, exact[i]);
+            benchmark::DoNotOptimize(exact[i]);
+          });
+          const Errors e = compare(sph, set.ref, ts.ns.size());
+          const Errors x = compare(exact, set.ref, ts.ns.size());
+          run.spheresMode->row(name, mesh.size(), d, levels[d]->size(), levelName(level), set.name, e.n, num(ts.median),
+                               num(ts.mean), num(te.median), num(te.mean), num(ts.median / te.median), e.refContacts,
+                               e.ourContacts, e.falseContacts, num(static_cast<double>(e.falseContacts) / e.n), e.missed,
+                               x.missed + x.falseContacts, num(e.meanSpheresHit));
+        }
+      }
+      std::cout << "  spheres mode d=" << d << " done at " << secondsSince(meshStart) << " s\n" << std::flush;
     }
   }
 
@@ -1231,7 +1260,7 @@ int main(int argc, char** argv) {
       s.sections = splitList(next());
     } else {
       std::cerr << "usage: clod_bench --shared DIR --out DIR [--quick] [--meshes a.off,b.off] "
-                   "[--sections sweep,peers,tightness,growth,contact,proxy]\n";
+                   "[--sections sweep,spheres,peers,tightness,growth,contact,proxy]\n";
       return 2;
     }
   }
@@ -1310,6 +1339,12 @@ int main(int argc, char** argv) {
         "mesh,triangles,d,spheres,level,mode,set,probes,median_ns,mean_ns,trimmed_mean_ns,p10_ns,p90_ns,p99_ns,ref_contacts,contacts,"
         "missed,false_contacts,mean_dist_err,max_dist_err,mean_normal_err_deg,max_normal_err_deg,max_point_err,"
         "mean_spheres_hit,mean_tris_tested,detector_build_ms,contact_diff_vs_hierarchy,distance_diff_vs_hierarchy");
+  if (has(s, "spheres"))
+    run.spheresMode = std::make_unique<Csv>(
+        o + "spheres_mode.csv",
+        "mesh,triangles,d,spheres,level,set,probes,spheres_median_ns,spheres_mean_ns,exact_median_ns,exact_mean_ns,"
+        "median_ratio,exact_contacts,spheres_contacts,false_contacts,false_contact_rate,missed,exact_errors,"
+        "mean_spheres_read");
   if (has(s, "peers"))
     run.peers = std::make_unique<Csv>(o + "peers.csv",
                                       "mesh,triangles,d,spheres,set,peer,probes,median_ns,mean_ns,p90_ns,p99_ns,"
@@ -1361,7 +1396,7 @@ int main(int argc, char** argv) {
     }
   }
 
-  const bool perMesh = has(s, "sweep") || has(s, "peers") || has(s, "tightness");
+  const bool perMesh = has(s, "sweep") || has(s, "spheres") || has(s, "peers") || has(s, "tightness");
   for (const std::string& path : perMesh ? meshes : std::vector<std::string>{}) {
     try {
       benchMesh(run, path);

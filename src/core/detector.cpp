@@ -10,6 +10,7 @@
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
 #include "enum_names.h"
+#include "float_rounding.h"
 
 namespace clod_haptics {
 
@@ -156,6 +157,31 @@ std::vector<Eigen::AlignedBox3d> ballBoxes(const ClodSphereSet& s) {
   return boxes;
 }
 
+/**
+ * A box tree over the spheres' centres (leaves of 4) and, per node, the largest padded radius below it rounded up
+ * to float: sqrt(distance to the node's box) - that radius bounds |p - c| - radius from below for every sphere
+ * in the node, the pruning bound of spheres mode's nearest-surface search.
+ */
+void buildGapTree(const ClodSphereSet& s, double pad, std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order,
+                  std::vector<float>& maxRadius) {
+  std::vector<Eigen::AlignedBox3d> points(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i) points[i] = Eigen::AlignedBox3d(s.centres[i], s.centres[i]);
+  if (buildBoxTree(points, 4, pad, nodes, order) == kNone) return;
+  maxRadius.assign(nodes.size(), 0.0f);
+  // Children follow their parent in the array (left at +1, right at first): fill from the back.
+  for (std::size_t n = nodes.size(); n-- > 0;) {
+    const BoxNode& node = nodes[n];
+    float m = 0.0f;
+    if (node.count > 0) {
+      for (std::uint32_t j = node.first; j < node.first + node.count; ++j)
+        m = std::max(m, detail::roundUp(s.radii[order[j]] + pad));
+    } else {
+      m = std::max(maxRadius[n + 1], maxRadius[node.first]);
+    }
+    maxRadius[n] = m;
+  }
+}
+
 /** Per sphere, the box of the triangles it lists intersected with its ball's box. */
 std::vector<Eigen::AlignedBox3d> tightBoxes(const TriangleMesh& m, const ClodSphereSet& s,
                                             const std::vector<Eigen::AlignedBox3d>& balls) {
@@ -231,6 +257,7 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
     const std::vector<Eigen::AlignedBox3d> balls = ballBoxes(s);
     buildBoxTree(balls, 4, pad_, sphereNodes_, sphereOrder_);
     buildBoxTree(tightBoxes(m, s, balls), 1, pad_, tightNodes_, tightOrder_);
+    buildGapTree(s, pad_, gapNodes_, gapOrder_, gapRadius_);
     // The hierarchy searches each hit sphere's own triangles; the grid, beyond its radius and for the deep search,
     // all the triangles at once.
     if (fastLevel_ == FastLevel::Hierarchy)
@@ -261,7 +288,8 @@ std::size_t ClodDetector::bytes() const noexcept {
   return sizeof(*this) + grid_.bytes() + bytesOf(sphereData_) + bytesOf(triangles_) + bytesOf(sphereNodes_) +
          bytesOf(sphereOrder_) + bytesOf(tightNodes_) + bytesOf(tightOrder_) + bytesOf(triangleNodes_) +
          bytesOf(triangleOrder_) + bytesOf(triangleRoot_) + bytesOf(sphereOfTriangle_) +
-         bytesOf(meshNodes_) + bytesOf(meshOrder_);
+         bytesOf(meshNodes_) + bytesOf(meshOrder_) +
+         bytesOf(gapNodes_) + bytesOf(gapOrder_) + bytesOf(gapRadius_);
 }
 
 inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode,
@@ -407,19 +435,57 @@ void ClodDetector::forEachHitSphere(double px, double py, double pz, const doubl
   }
 }
 
+// Best first through the gap tree: a node whose bound on |p - c| - radius exceeds both the pointer's radius and the
+// best gap so far (beyond the padding) holds no sphere that could answer; the nearer child is searched first.
+template <class Visit>
+void ClodDetector::nearestSphereSurface(const Vec3& p, double r, const double& bestGap, Visit&& visit) const {
+  const BoxNode* nodes = gapNodes_.data();
+  const float* maxRadius = gapRadius_.data();
+  const double slack = 4.0 * pad_;
+  auto bound = [&](std::uint32_t n) {
+    return std::sqrt(squaredDistanceToNode(nodes[n], p.x(), p.y(), p.z())) - static_cast<double>(maxRadius[n]);
+  };
+  std::uint32_t stack[64];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const std::uint32_t n = stack[--top];
+    const double limit = std::min(r, bestGap) + slack;
+    if (bound(n) > limit) continue;
+    const BoxNode& node = nodes[n];
+    if (node.count > 0) {
+      for (std::uint32_t j = node.first; j < node.first + node.count; ++j) visit(gapOrder_[j]);
+      continue;
+    }
+    const std::uint32_t left = n + 1, right = node.first;
+    const double bl = bound(left), br = bound(right);
+    const bool leftFirst = bl <= br;  // the nearer child goes on the stack last, to be searched first
+    if (std::max(bl, br) <= limit) stack[top++] = leftFirst ? right : left;
+    if (std::min(bl, br) <= limit) stack[top++] = leftFirst ? left : right;
+  }
+}
+
 inline void ClodDetector::querySpheres(const Vec3& p, double r, ContactResult& out, QueryCache* cache) const {
   const double* sd = sphereData_.data();
   double bestGap = std::numeric_limits<double>::infinity();
   std::uint32_t bestSphere = kNone, hits = 0;
-  forEachHitSphere(p.x(), p.y(), p.z(), r, false, [&](std::uint32_t i) {
+  // A sphere the pointer overlaps (padded, as the hierarchy's test); the nearest surface, the lower index on a tie.
+  auto visit = [&](std::uint32_t i) {
+    const double dx = p.x() - sd[4 * i], dy = p.y() - sd[4 * i + 1], dz = p.z() - sd[4 * i + 2];
+    const double rr = sd[4 * i + 3] + r, d2 = dx * dx + dy * dy + dz * dz;
+    if (d2 > rr * rr) return;
     ++hits;
-    const double gap =
-        std::sqrt((p - Vec3(sd[4 * i], sd[4 * i + 1], sd[4 * i + 2])).squaredNorm()) - spheres_->radii[i];
+    const double gap = std::sqrt(d2) - spheres_->radii[i];
     if (gap < bestGap || (gap == bestGap && i < bestSphere)) {
       bestGap = gap;
       bestSphere = i;
     }
-  });
+  };
+  if (gapNodes_.empty()) {  // the flat level: every sphere
+    for (std::uint32_t i = 0; i < spheres_->size(); ++i) visit(i);
+  } else {
+    nearestSphereSurface(p, r, bestGap, visit);
+  }
   out.spheresHit = hits;
   if (bestSphere == kNone) return;
   const Vec3& c = spheres_->centres[bestSphere];

@@ -290,6 +290,38 @@ ClodSphereSet ClodBuilder::build(double d) const {
   return set;
 }
 
+ClodSphereSet ClodBuilder::buildAtMost(std::size_t maxSpheres, double tolerance) const {
+  if (maxSpheres == 0) throw InvalidParameter("buildAtMost: the sphere count must be at least 1");
+  if (!(tolerance > 0.0 && tolerance < 1.0))
+    throw InvalidParameter("buildAtMost: the tolerance must lie in (0, 1), got " + std::to_string(tolerance));
+  ClodSphereSet low = build(0.0);
+  if (low.size() <= maxSpheres) return low;
+  const double diagonal = std::max(mesh_->diagonal(), std::numeric_limits<double>::min());
+  // An upper end whose set fits: the diagonal merges every single-link cluster; other strategies may need more.
+  double lo = 0.0, hi = diagonal;
+  ClodSphereSet high = build(hi);
+  for (int grow = 0; high.size() > maxSpheres; ++grow) {
+    if (grow == 40)
+      throw InvalidParameter("buildAtMost: no clustering distance up to " + std::to_string(hi) + " gives at most " +
+                             std::to_string(maxSpheres) + " spheres");
+    lo = hi;
+    hi *= 2.0;
+    high = build(hi);
+  }
+  // Invariant: build(lo) has more than maxSpheres spheres, build(hi) at most.
+  while (hi - lo > tolerance * diagonal) {
+    const double mid = 0.5 * (lo + hi);
+    ClodSphereSet set = build(mid);
+    if (set.size() <= maxSpheres) {
+      hi = mid;
+      high = std::move(set);
+    } else {
+      lo = mid;
+    }
+  }
+  return high;
+}
+
 std::string fitProblem(const TriangleMesh& mesh, const ClodSphereSet& set, double relativeTolerance) {
   const std::size_t n = set.centres.size();
   if (set.radii.size() != n || set.offsets.size() != n + 1) return "inconsistent array sizes";

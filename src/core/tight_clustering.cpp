@@ -12,6 +12,7 @@
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
 #include "clod_haptics/core/morton.h"
+#include "clod_haptics/core/triangle_bvh.h"
 #include "parallel.h"
 
 namespace clod_haptics {
@@ -143,7 +144,8 @@ TriangleItems gatherItems(const TriangleMesh& mesh, const std::vector<Vec3>& poi
 }
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
-constexpr int kMaxCandidates = 7;
+constexpr int kMaxCandidates = 9;
+constexpr int kRays = 32;  // directions of the all-sides estimate
 
 struct Candidate {
   Vec3 centre;
@@ -159,10 +161,22 @@ inline double capVolume(double r, double h) { return 0.25 * h * h * (3.0 * r - h
 // the nearest vertex of the node's own triangles, so R minus that distance bounds h from below: a
 // candidate whose bound already exceeds d^3 or the best exact excess found gets no distance query (the
 // costly part); the decision and the chosen centre are those of exact values.
+// Unit directions spread over the sphere (a Fibonacci lattice).
+std::vector<Vec3> rayDirections() {
+  std::vector<Vec3> dirs(kRays);
+  const double golden = M_PI * (3.0 - std::sqrt(5.0));
+  for (int i = 0; i < kRays; ++i) {
+    const double z = 1.0 - (2.0 * i + 1.0) / kRays, ring = std::sqrt(1.0 - z * z);
+    dirs[i] = Vec3(ring * std::cos(golden * i), ring * std::sin(golden * i), z);
+  }
+  return dirs;
+}
+
 class PatchJudge {
  public:
   PatchJudge(const TriangleMesh& mesh, const TriangleItems& items, const std::vector<std::uint32_t>& order, double d)
-      : mesh_(mesh), items_(items), order_(order), surface_(mesh), d3_(d * d * d) {}
+      : mesh_(mesh), items_(items), order_(order), surface_(mesh), bvh_(mesh), dirs_(rayDirections()),
+        d3_(d * d * d) {}
 
   // Whether node r becomes a sphere; its centre in best either way.
   bool evaluate(Range r, Vec3& best) const {
@@ -201,7 +215,9 @@ class PatchJudge {
     const double normalLength = meanNormal.norm();
     if (normalLength > 1e-9 * size && depth > 0.0) {
       const Vec3 inward = -meanNormal / normalLength;
-      for (const double f : {1.0, 0.75, 0.5, 0.25, 0.125}) cand[count++].centre = meanCentroid + f * depth * inward;
+      // Up to twice the depth: the middle of a thin part for a placement a quarter of the way across.
+      for (const double f : {2.0, 1.5, 1.0, 0.75, 0.5, 0.25, 0.125})
+        cand[count++].centre = meanCentroid + f * depth * inward;
     }
     int kept = 0;
     for (int j = 0; j < count; ++j)
@@ -244,7 +260,7 @@ class PatchJudge {
   double pickCentre(Candidate* cand, int count, double threshold, Vec3& best) const {
     std::stable_sort(cand, cand + count, [](const Candidate& x, const Candidate& y) { return x.lower < y.lower; });
     best = cand[0].centre;
-    double bestExcess = kInfinity;
+    double bestExcess = kInfinity, bestRadius = 0.0;
     for (int j = 0; j < count; ++j) {
       if (cand[j].lower > threshold || cand[j].lower >= bestExcess) continue;
       const double radius = std::sqrt(cand[j].far2);
@@ -252,16 +268,39 @@ class PatchJudge {
           capVolume(radius, std::clamp(radius - surface_.signedDistance(cand[j].centre, radius), 0.0, 2.0 * radius));
       if (std::isfinite(e) && e < bestExcess) {
         bestExcess = e;
+        bestRadius = radius;
         best = cand[j].centre;
       }
     }
+    // The cap sees one side; a ball in a thin part also sticks out on the far side (a plate) or all round (a leg).
+    // Scored for the chosen centre, once its cap passes.
+    if (std::isfinite(threshold) && bestExcess <= threshold)
+      bestExcess = std::max(bestExcess, outsideAllRound(best, bestRadius, threshold));
     return bestExcess;
+  }
+
+  // The ball's volume beyond the surface on every side, over 4/3 pi, as seen from its centre: along each of kRays
+  // directions the part of the radius beyond the first surface crossing, (R^3 - min(s, R)^3) averaged (a solid
+  // angle's share of the ball). Counts a region behind a second crossing as outside: an upper estimate.
+  // Stops once the estimate exceeds limit (the answer is then some value above limit, not the estimate).
+  double outsideAllRound(const Vec3& centre, double radius, double limit) const {
+    const double r3 = radius * radius * radius;
+    double sum = 0.0;
+    for (const Vec3& dir : dirs_) {
+      double first = radius;
+      bvh_.forEachRayHit(centre, dir, first, [&](std::uint32_t, double t) { first = std::min(first, t); });
+      sum += r3 - first * first * first;
+      if (sum > limit * kRays) return sum / kRays;  // the rest only adds (each term >= 0)
+    }
+    return sum / kRays;
   }
 
   const TriangleMesh& mesh_;
   const TriangleItems& items_;
   const std::vector<std::uint32_t>& order_;
   const SurfaceDistance surface_;
+  const TriangleBvh bvh_;
+  const std::vector<Vec3> dirs_;
   const double d3_;
 };
 

@@ -31,13 +31,15 @@ using Clock = std::chrono::steady_clock;
 
 const char* kUsage =
     "usage (every command also takes --clustering single-link|cube|tight, default single-link):\n"
-    "  clod_tool build --mesh M [--scale S | --normalize] --distance D --out SPHERES.yaml [--json]\n"
+    "  clod_tool build --mesh M [--scale S | --normalize] (--distance D | --count N) --out SPHERES.yaml [--json]\n"
+    "                  (--count N: the level with at most N spheres, the least such distance by bisection)\n"
     "  clod_tool query --mesh M [--scale S | --normalize] --distance D --radius R --mode exact|paper|spheres\n"
     "                  --probes P.csv --out RESULT.csv [--fast grid|hierarchy|flat] [--json]\n"
     "  clod_tool sweep --mesh M [--scale S | --normalize] --distances 0,0.01,...,0.08 [--radius R]\n"
     "                  [--mode exact|paper] [--fast grid|hierarchy|flat] [--count N] [--json]\n"
     "bounds: --radius, --distance(s) in [0, 1e12]; --scale in [1e-12, 1e12], the scaled mesh's coordinates\n"
-    "  within 1e12 and its largest side at least 1e-12; --count an integer in [1, 1e7], default 20000.\n"
+    "  within 1e12 and its largest side at least 1e-12; --count an integer in [1, 1e7] (sweep: probes, default\n"
+    "  20000; build: spheres).\n"
     "probes: 'x,y,z' rows of finite numbers within 1e12, lines of at most 4096 bytes, an optional\n"
     "  non-numeric header row.\n";
 
@@ -199,14 +201,20 @@ struct MeshArgs {
 };
 
 int cmdBuild(int argc, char** argv) {
-  Args args(argc, argv, {"--mesh", "--scale", "--distance", "--out", "--clustering"}, {"--normalize", "--json"});
-  const double d = args.number("--distance", kDistance);
+  Args args(argc, argv, {"--mesh", "--scale", "--distance", "--count", "--out", "--clustering"}, {"--normalize", "--json"});
+  if (args.has("--distance") == args.has("--count"))
+    throw ToolError(kUsageError, "build takes one of --distance and --count");
+  const bool byCount = args.has("--count");
+  const double d0 = byCount ? 0.0 : args.number("--distance", kDistance);
+  const double maxSpheres = byCount ? args.number("--count", kCount) : 0.0;
   const MeshArgs meshArgs(args);
   const std::string out = args.get("--out");
   checkWritable("--out", out);
   Loaded l = loadAndPlace(args, meshArgs.options, meshArgs.clustering);
   const auto start = Clock::now();
-  const ClodSphereSet set = l.builder->build(d);
+  const ClodSphereSet set =
+      byCount ? l.builder->buildAtMost(static_cast<std::size_t>(maxSpheres)) : l.builder->build(d0);
+  const double d = set.distance;
   const double clusterMs = msSince(start);
   writeOutput("--out", out, [&](std::ostream& stream) { writeSphereSetYaml(set, stream); });
   const double buildMs = l.placementMs + clusterMs;

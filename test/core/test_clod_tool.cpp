@@ -154,6 +154,28 @@ TEST_F(ClodTool, BuildJsonIsOneObjectWithCounts) {
   EXPECT_GE(jsonNumber(r.out, "build_ms"), 0.0) << r.out;
 }
 
+TEST_F(ClodTool, BuildCountFindsTheLevelWithAtMostThatManySpheres) {
+  const std::string mesh = clod_test::sharedMesh("head.off");
+  const ToolRun r = run({"build", "--mesh", mesh, "--normalize", "--count", "100", "--out", path("s.yaml"), "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto m = clod_test::loadNormalized(mesh);
+  const ClodBuilder builder(m);
+  const double d = jsonNumber(r.out, "distance");
+  EXPECT_LE(jsonInt(r.out, "spheres"), 100) << r.out;
+  EXPECT_EQ(jsonInt(r.out, "spheres"), static_cast<long>(builder.build(d).size())) << r.out;
+  // Least: a slightly smaller distance gives more than 100 spheres.
+  EXPECT_GT(builder.build(d - 1e-5).size(), 100u) << r.out;
+  const ClodSphereSet written = readSphereSetYaml(path("s.yaml"));
+  EXPECT_EQ(written.size(), static_cast<std::size_t>(jsonInt(r.out, "spheres")));
+  EXPECT_TRUE(clod_test::coverageProblems(*m, written).empty());
+  const ToolRun both = run({"build", "--mesh", mesh, "--normalize", "--count", "100", "--distance", "0.02", "--out",
+                            path("t.yaml")});
+  EXPECT_NE(both.code, 0);
+  EXPECT_NE(both.err.find("one of --distance and --count"), std::string::npos) << both.err;
+  const ToolRun zero = run({"build", "--mesh", mesh, "--normalize", "--count", "0", "--out", path("t.yaml")});
+  EXPECT_NE(zero.code, 0);
+}
+
 TEST_F(ClodTool, BuildWithScale) {
   const ToolRun r = run({"build", "--mesh", clod_test::testData("cube.obj"), "--scale", "3", "--distance", "0", "--out",
                      path("s.yaml")});

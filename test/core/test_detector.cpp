@@ -340,6 +340,74 @@ TEST_P(DetectorVsBruteForce, ReferenceEqualsFullBruteForce) {
   EXPECT_GT(contacts, probes.size() / 4);
 }
 
+// Spheres mode's answer by definition, over every sphere of the level: contact when some sphere is within r of the
+// pointer (|p - c| <= radius + r), through the sphere whose surface is nearest (|p - c| - radius least, the lower
+// index on a tie).
+struct SphereReference {
+  bool contact = false;
+  std::int32_t sphere = -1;
+  double gap = 0.0;
+};
+SphereReference bruteForceSpheres(const ClodSphereSet& set, const Vec3& p, double r) {
+  SphereReference ref;
+  ref.gap = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < set.size(); ++i) {
+    const double gap = (p - set.centres[i]).norm() - set.radii[i];
+    if (gap < ref.gap) {
+      ref.gap = gap;
+      ref.sphere = static_cast<std::int32_t>(i);
+    }
+  }
+  ref.contact = ref.gap <= r;
+  return ref;
+}
+
+TEST_P(DetectorVsBruteForce, SpheresModeEqualsEverySphereOverlappingThePointer) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(GetParam()));
+  const ClodBuilder builder(mesh);
+  const double tol = 1e-9;  // normalised meshes: the padding and the rounding of |p - c| are far below it
+  for (double d : {0.0, 0.01, 0.02, 0.05}) {
+    const auto set = std::make_shared<const ClodSphereSet>(builder.build(d));
+    // Bounded cost of the reference (probes x spheres), at least 1000 probes.
+    const std::size_t count = std::max<std::size_t>(1000, std::min<std::size_t>(20000, 100000000 / set->size()));
+    std::vector<Vec3> probes = nearSurfaceProbes(*mesh, count / 2, kMaxRadius, 21);
+    const auto uniform = uniformProbes(*mesh, count / 2, kMaxRadius, 22);
+    probes.insert(probes.end(), uniform.begin(), uniform.end());
+    for (double r : {0.0, 0.005, kMaxRadius}) {
+      std::vector<SphereReference> ref(probes.size());
+      clod_test::parallelFor(probes.size(), kThreads, [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) ref[i] = bruteForceSpheres(*set, probes[i], r);
+      });
+      for (FastLevel fast : {FastLevel::Grid, FastLevel::Hierarchy, FastLevel::Flat}) {
+        const ClodDetector det(mesh, set, fast);
+        SCOPED_TRACE(GetParam() + " d=" + std::to_string(d) + " r=" + std::to_string(r) + " " + toString(fast));
+        std::size_t contacts = 0, wrong = 0;
+        for (std::size_t i = 0; i < probes.size(); ++i) {
+          ContactResult got;
+          det.query(probes[i], r, DetectionMode::Spheres, got);
+          const SphereReference& e = ref[i];
+          contacts += e.contact;
+          // Within rounding of the pointer's reach, either answer is right.
+          if (got.contact != e.contact && std::abs(e.gap - r) <= tol) continue;
+          bool ok = got.contact == e.contact;
+          if (ok && e.contact) {
+            const double gotGap = (probes[i] - set->centres[got.sphere]).norm() - set->radii[got.sphere];
+            ok = got.sphere == e.sphere || std::abs(gotGap - e.gap) <= tol;
+            ok = ok && std::abs(got.distance - std::max(0.0, e.gap)) <= tol && std::abs(got.depth - (r - got.distance)) <= tol;
+          }
+          if (!ok && wrong++ < 5)
+            ADD_FAILURE() << "probe " << i << ": contact " << got.contact << " sphere " << got.sphere << " vs "
+                          << e.contact << " sphere " << e.sphere << " (gap " << e.gap << ")";
+        }
+        EXPECT_EQ(wrong, 0u);
+        if (r > 0.0) {
+          EXPECT_GT(contacts, probes.size() / 50) << "the probes must exercise contacts";
+        }
+      }
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(SharedMeshes, DetectorVsBruteForce,
                          ::testing::Values("degtri_sliding.off", "elephant.off", "head.off", "mannequin-devil.off",
                                            "mesh_with_border.off", "refined_elephant.off"),

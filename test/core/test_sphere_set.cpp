@@ -58,6 +58,57 @@ TEST(ClodSphereSet, SphereCountNonIncreasingInDistance) {
   }
 }
 
+// The single-link merge distances of points, ascending: the edge lengths of their Euclidean minimum spanning tree
+// (Prim, O(n^2)). Centres closer than d merge, so build(d) has n - #(edges < d) spheres.
+std::vector<double> mergeDistances(const std::vector<Vec3>& points) {
+  const std::size_t n = points.size();
+  std::vector<double> best(n, std::numeric_limits<double>::infinity()), edges;
+  std::vector<char> in(n, 0);
+  std::size_t next = 0;
+  for (std::size_t step = 0; step < n; ++step) {
+    const std::size_t u = next;
+    in[u] = 1;
+    if (step > 0) edges.push_back(best[u]);
+    double nearest = std::numeric_limits<double>::infinity();
+    for (std::size_t v = 0; v < n; ++v) {
+      if (in[v]) continue;
+      best[v] = std::min(best[v], (points[u] - points[v]).norm());
+      if (best[v] < nearest) {
+        nearest = best[v];
+        next = v;
+      }
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  return edges;
+}
+
+TEST(ClodSphereSet, BuildAtMostIsTheLeastDistanceWithThatManySpheres) {
+  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
+  const ClodBuilder builder(mesh);
+  std::vector<Vec3> centres;
+  for (const PlacedSphere& p : builder.placed()) centres.push_back(p.centre);
+  const std::vector<double> merges = mergeDistances(centres);
+  const std::size_t n = centres.size();
+  const double tolerance = 1e-6 * mesh->diagonal();
+  for (std::size_t target : {std::size_t{1}, std::size_t{7}, std::size_t{100}, std::size_t{845}, n / 2, n - 1, n, n + 5}) {
+    SCOPED_TRACE("at most " + std::to_string(target));
+    const ClodSphereSet set = builder.buildAtMost(target);
+    EXPECT_LE(set.size(), target);
+    EXPECT_EQ(set.size(), builder.build(set.distance).size());
+    if (target >= n) {
+      EXPECT_EQ(set.distance, 0.0);
+      continue;
+    }
+    // The least d with at most target spheres lies just above the (n - target)-th merge distance.
+    const double least = merges[n - target - 1];
+    EXPECT_GT(set.distance, least);
+    EXPECT_LE(set.distance, least + 2.0 * tolerance);
+  }
+  EXPECT_THROW(builder.buildAtMost(0), InvalidParameter);
+  EXPECT_THROW(builder.buildAtMost(10, 0.0), InvalidParameter);
+}
+
 TEST(ClodSphereSet, ListsAreSortedUniqueAndCoverEveryTriangle) {
   const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("mannequin-devil.off"));
   const ClodBuilder builder(mesh);

@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <string>
 #include <random>
 #include <vector>
 
@@ -116,6 +118,136 @@ TEST(TightClustering, CapOfEverySphereHoldsAtMostABallOfRadiusD) {
       }
       EXPECT_GT(checked, 0u);
     }
+  }
+}
+
+// A closed box centred at the origin with half sizes h, each face a grid of n x n quads (two triangles each),
+// outward wound; faces do not share vertices.
+std::shared_ptr<const TriangleMesh> boxMesh(const Vec3& h, int n, const std::string& name) {
+  std::vector<Vec3> v;
+  std::vector<Triangle> t;
+  for (int axis = 0; axis < 3; ++axis)
+    for (int sign : {-1, 1}) {
+      const int a = (axis + 1) % 3, b = (axis + 2) % 3;
+      Vec3 origin = Vec3::Zero(), du = Vec3::Zero(), dv = Vec3::Zero();
+      origin[axis] = sign * h[axis];
+      origin[a] = -h[a];
+      origin[b] = -h[b];
+      du[a] = 2 * h[a];
+      dv[b] = 2 * h[b];
+      const auto first = static_cast<std::uint32_t>(v.size());
+      for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) v.push_back(origin + du * (double(i) / n) + dv * (double(j) / n));
+      auto at = [&](int i, int j) { return first + static_cast<std::uint32_t>(j * (n + 1) + i); };
+      for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+          if (sign > 0) {  // du x dv points along +axis
+            t.push_back(Triangle{{at(i, j), at(i + 1, j), at(i + 1, j + 1)}});
+            t.push_back(Triangle{{at(i, j), at(i + 1, j + 1), at(i, j + 1)}});
+          } else {
+            t.push_back(Triangle{{at(i, j), at(i + 1, j + 1), at(i + 1, j)}});
+            t.push_back(Triangle{{at(i, j), at(i, j + 1), at(i + 1, j + 1)}});
+          }
+        }
+    }
+  return std::make_shared<const TriangleMesh>(makeMesh(v, t, name));
+}
+
+// A closed cylinder along x from -half to half of radius a, `segments` around, `rings` along (1: long triangles).
+std::shared_ptr<const TriangleMesh> cylinderMesh(double a, double half, int segments, int rings, const std::string& name) {
+  std::vector<Vec3> v;
+  std::vector<Triangle> t;
+  for (int k = 0; k <= rings; ++k)
+    for (int s = 0; s < segments; ++s) {
+      const double phi = 2 * M_PI * s / segments;
+      v.push_back(Vec3(-half + 2 * half * k / rings, a * std::cos(phi), a * std::sin(phi)));
+    }
+  auto at = [&](int k, int s) { return static_cast<std::uint32_t>(k * segments + (s % segments)); };
+  for (int k = 0; k < rings; ++k)
+    for (int s = 0; s < segments; ++s) {
+      t.push_back(Triangle{{at(k, s), at(k + 1, s + 1), at(k + 1, s)}});
+      t.push_back(Triangle{{at(k, s), at(k, s + 1), at(k + 1, s + 1)}});
+    }
+  const auto c0 = static_cast<std::uint32_t>(v.size());
+  v.push_back(Vec3(-half, 0, 0));
+  v.push_back(Vec3(half, 0, 0));
+  for (int s = 0; s < segments; ++s) {
+    t.push_back(Triangle{{c0, at(0, s), at(0, s + 1)}});
+    t.push_back(Triangle{{c0 + 1, at(rings, s + 1), at(rings, s)}});
+  }
+  return std::make_shared<const TriangleMesh>(makeMesh(v, t, name));
+}
+
+// Thin-part models: plates 0.005 to 0.03 thick (fine and long triangles), thin cylinders (rings and long triangles).
+std::vector<std::shared_ptr<const TriangleMesh>> thinMeshes() {
+  return {boxMesh(Vec3(0.4, 0.25, 0.0025), 24, "plate 0.005"), boxMesh(Vec3(0.4, 0.25, 0.015), 1, "plate 0.03 long"),
+          boxMesh(Vec3(0.4, 0.25, 0.005), 12, "plate 0.01"), cylinderMesh(0.01, 0.4, 12, 1, "cylinder 0.02 long"),
+          cylinderMesh(0.02, 0.4, 16, 30, "cylinder 0.04")};
+}
+
+// Every point of every triangle lies in some sphere listing that triangle: checked at the points of a barycentric
+// grid of 8 steps per edge (45 points, corners and edges included) on every triangle. Returns the misses.
+std::size_t uncoveredSamples(const TriangleMesh& mesh, const ClodSphereSet& set) {
+  std::vector<std::vector<std::uint32_t>> listing(mesh.size());
+  for (std::size_t i = 0; i < set.size(); ++i)
+    for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t) listing[*t].push_back(static_cast<std::uint32_t>(i));
+  constexpr int kSteps = 8;
+  std::size_t misses = 0;
+  for (std::size_t t = 0; t < mesh.size(); ++t)
+    for (int i = 0; i <= kSteps; ++i)
+      for (int j = 0; i + j <= kSteps; ++j) {
+        const double u = double(i) / kSteps, w = double(j) / kSteps;
+        const Vec3 p = (1 - u - w) * mesh.vertex(t, 0) + u * mesh.vertex(t, 1) + w * mesh.vertex(t, 2);
+        bool inside = false;
+        for (std::uint32_t s : listing[t])
+          inside = inside || (p - set.centres[s]).norm() <= set.radii[s] * (1 + 1e-9) + 1e-12;
+        misses += !inside;
+      }
+  return misses;
+}
+
+TEST(TightClustering, EveryPointOfEveryTriangleIsInASphereListingIt) {
+  std::vector<std::shared_ptr<const TriangleMesh>> meshes = thinMeshes();
+  for (const auto& path : clod_test::sharedMeshes()) meshes.push_back(clod_test::loadNormalized(path));
+  for (const auto& mesh : meshes) {
+    const ClodBuilder builder(mesh, std::make_shared<PaperPlacement>(), makeClustering("tight"));
+    for (double d : {0.0, 0.01, 0.02, 0.05}) {
+      if (d == 0.0 && mesh->size() > 30000) continue;  // one sphere per triangle: seconds, nothing new
+      SCOPED_TRACE(mesh->name + " d=" + std::to_string(d));
+      EXPECT_EQ(uncoveredSamples(*mesh, builder.build(d)), 0u);
+    }
+  }
+}
+
+TEST(TightClustering, SpheresInThinPartsScoreTheVolumeOutsideOnEverySide) {
+  // Analytic bound of the volume outside: a ball of radius R meets a plate of thickness t in at most pi R^2 t and
+  // a cylinder of radius a in at most 2 pi a^2 R, so over 4/3 pi at least R^3 - 3/4 t R^2 (plate) or R^3 - 3/2 a^2 R
+  // (cylinder) of it is outside. A set scoring every side keeps that below d^3 (the 32-direction estimate within
+  // half of it); a score of one side lets spheres of several thicknesses through.
+  struct Case {
+    std::shared_ptr<const TriangleMesh> mesh;
+    bool plate;
+    double size;  // thickness t or radius a
+  };
+  for (const Case& c : {Case{boxMesh(Vec3(0.4, 0.25, 0.005), 40, "plate 0.01"), true, 0.01},
+                        Case{boxMesh(Vec3(0.4, 0.25, 0.0025), 40, "plate 0.005"), true, 0.005},
+                        Case{cylinderMesh(0.015, 0.4, 16, 60, "cylinder 0.03"), false, 0.015}}) {
+    const ClodBuilder builder(c.mesh, std::make_shared<PaperPlacement>(), makeClustering("tight"));
+    std::size_t checked = 0;  // spheres of more than one triangle, over the distances
+    for (double d : {0.01, 0.02, 0.04}) {
+      SCOPED_TRACE(c.mesh->name + " d=" + std::to_string(d));
+      const ClodSphereSet set = builder.build(d);
+      std::size_t over = 0;
+      for (std::size_t i = 0; i < set.size(); ++i) {
+        if (set.end(i) - set.begin(i) < 2) continue;
+        const double r = set.radii[i];
+        const double outside = c.plate ? r * r * r - 0.75 * c.size * r * r : r * r * r - 1.5 * c.size * c.size * r;
+        over += outside > 1.5 * d * d * d;
+        ++checked;
+      }
+      EXPECT_EQ(over, 0u) << "of " << set.size() << " spheres";
+    }
+    EXPECT_GT(checked, 10u) << c.mesh->name;
   }
 }
 

@@ -83,6 +83,12 @@ class ClodDetector {
    * answer is that contact (depth r + distance, as bruteForceSignedQuery), else no contact. Without a cache
    * (stateless queries) a deep centre answers no contact, as bruteForceQuery. The deep search costs more than a
    * bounded query (the flat level also scans the mesh's bounds) and still allocates nothing.
+   *
+   * Spheres mode answers the sphere of the level whose surface is nearest the pointer's centre among those the
+   * pointer overlaps (|p - c| <= radius + r; least |p - c| - radius, the lower index on a tie). The grid and the
+   * hierarchy find it through a tree over the sphere centres that keeps each node's largest radius, best first,
+   * so a query reads a few spheres even where thousands overlap (d = 0); spheresHit then counts the overlapping
+   * spheres it read. The flat level tests every sphere.
    */
   void query(const Vec3& p, double r, DetectionMode mode, ContactResult& out,
              QueryCache* cache = nullptr) const noexcept;
@@ -141,6 +147,8 @@ class ClodDetector {
   // The stages of query(): the spheres mode; the nearest triangle within radius; the growing search of a deep
   // centre; the answer from the search's result.
   void querySpheres(const Vec3& p, double r, ContactResult& out, QueryCache* cache) const;
+  template <class Visit>
+  void nearestSphereSurface(const Vec3& p, double r, const double& bestGap, Visit&& visit) const;
   void search(const Vec3& p, double radius, DetectionMode mode, Best& best, QueryCache* cache) const;
   void searchDeep(const Vec3& p, double r, DetectionMode mode, Best& best, QueryCache* cache) const;
   void answer(const Vec3& p, double r, const Best& best, ContactResult& out, QueryCache* cache) const;
@@ -163,6 +171,11 @@ class ClodDetector {
   std::vector<std::uint32_t> sphereOrder_;
   std::vector<BoxNode> tightNodes_;
   std::vector<std::uint32_t> tightOrder_;
+  // Spheres mode (hierarchy and grid): a tree over the spheres' centres with each node's largest radius, searched
+  // best first for the nearest sphere surface, so the search reads a few spheres however many overlap the pointer.
+  std::vector<BoxNode> gapNodes_;
+  std::vector<std::uint32_t> gapOrder_;
+  std::vector<float> gapRadius_;
   std::vector<BoxNode> triangleNodes_;
   std::vector<std::uint32_t> triangleOrder_;  // triangle indices in per-sphere leaf order
   std::vector<std::uint32_t> triangleRoot_;   // per sphere: root in triangleNodes_

@@ -72,6 +72,16 @@ class ClodBuilder {
    */
   ClodSphereSet build(double d) const;
 
+  /**
+   * \brief The level with at most maxSpheres spheres: build(d) at the least d, to within tolerance times the
+   * mesh's diagonal, whose set has at most maxSpheres spheres, found by bisection over d between 0 and the
+   * diagonal (doubled while the count is still above maxSpheres, at most 40 times). The count falls as d grows
+   * for single-link clustering (clusters only merge), so the answer is the least such d; for a strategy whose
+   * count is not monotone in d it is a d where the count drops to maxSpheres or below, the set always within it.
+   * \throws InvalidParameter when maxSpheres is 0, tolerance is not in (0, 1), or no d reaches maxSpheres.
+   */
+  ClodSphereSet buildAtMost(std::size_t maxSpheres, double tolerance = 1e-6) const;
+
   /** \brief The mesh. */
   const std::shared_ptr<const TriangleMesh>& mesh() const { return mesh_; }
   /** \brief The spheres before clustering (assembled on demand: the builder keeps only flat arrays). */

@@ -24,12 +24,23 @@ namespace clod_haptics {
  * spheres (the cut moves up the same tree: the count never grows with d); d = 0 gives one sphere per
  * triangle. Nothing chains: thin parts get small spheres, thick parts few large ones.
  *
+ * The cap sees one side of the surface only; a ball in a thin plate sticks out on both sides, one in a
+ * leg all the way round. So a node whose cap passes is also scored on every side: from its centre, along
+ * 32 directions spread over the sphere, the part of the radius beyond the first surface crossing, s, gives
+ * (R^3 - min(s, R)^3) averaged over the directions, the ball's volume beyond the surface over 4/3 pi as
+ * seen from the centre (an upper estimate: a region behind a second crossing counts as outside). The
+ * excess is the larger of the two.
+ *
  * A node's centre is the candidate with the least excess among the mean of the placement's points
  * on its triangles and the mean of the triangles' centroids pushed inward along their mean normal by
- * 1, 3/4, 1/2, 1/4 and 1/8 of the mean depth of those points below their triangles. Any placement
+ * 2, 3/2, 1, 3/4, 1/2, 1/4 and 1/8 of the mean depth of those points below their triangles (twice the depth
+ * is the middle of a thin part for PaperPlacement, a quarter of the way across). Any placement
  * works (the default is PaperPlacement: points a quarter of the way to the opposite triangle).
  * The builder still sets each radius to reach every vertex of every listed triangle, so coverage
- * holds whatever the centres are.
+ * holds whatever the centres are: every point of every triangle lies in the sphere listing it (the
+ * invariant the detector relies on, see ClodSphereSet). A long triangle therefore sits whole in one
+ * sphere, whose radius is at least half the triangle's longest edge: a model of long thin triangles keeps
+ * large spheres at every d (splitting a triangle over several spheres is not done).
  *
  * Without the mesh (the plain cluster() call) the same split runs on the points alone and a node is
  * kept when all its points lie within d / 2 of their mean. Expected O(n log n).
