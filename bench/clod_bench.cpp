@@ -1314,7 +1314,10 @@ int main(int argc, char** argv) {
             << Clock::overheadTicks * Clock::nsPerTick << " ns\n" << std::flush;
 
   const std::string o = s.out + "/";
-  {
+  // run.csv, build.csv and reference_check.csv describe the per-mesh sections: a run of only the contact or
+  // proxy section (which write their own run notes) leaves them as the last full run wrote them.
+  const bool perMesh = has(s, "sweep") || has(s, "spheres") || has(s, "peers") || has(s, "tightness");
+  if (perMesh) {
     std::ofstream meta(o + "run.csv");
     const std::time_t now = std::time(nullptr);
     char stamp[64];
@@ -1329,10 +1332,12 @@ int main(int argc, char** argv) {
          << Clock::nsPerTick << "\ntimer_overhead_ns," << Clock::overheadTicks * Clock::nsPerTick
          << "\nreport_d," << s.reportD << "\nrounds," << s.rounds << "\nloadavg_before," << loadAverage() << "\n";
   }
-  run.build = std::make_unique<Csv>(o + "build.csv",
-                                    "mesh,triangles,d,centres,spheres,step_reduction,total_reduction,placement_ms,build_ms,"
-                                    "max_tris_per_sphere,mean_tris_per_sphere,unpaired,degenerate,open_edges");
-  run.checks = std::make_unique<Csv>(o + "reference_check.csv", "mesh,set,probes,differences_from_bruteForceQuery");
+  if (perMesh) {
+    run.build = std::make_unique<Csv>(o + "build.csv",
+                                      "mesh,triangles,d,centres,spheres,step_reduction,total_reduction,placement_ms,"
+                                      "build_ms,max_tris_per_sphere,mean_tris_per_sphere,unpaired,degenerate,open_edges");
+    run.checks = std::make_unique<Csv>(o + "reference_check.csv", "mesh,set,probes,differences_from_bruteForceQuery");
+  }
   if (has(s, "sweep"))
     run.sweep = std::make_unique<Csv>(
         o + "sweep.csv",
@@ -1396,7 +1401,6 @@ int main(int argc, char** argv) {
     }
   }
 
-  const bool perMesh = has(s, "sweep") || has(s, "spheres") || has(s, "peers") || has(s, "tightness");
   for (const std::string& path : perMesh ? meshes : std::vector<std::string>{}) {
     try {
       benchMesh(run, path);
@@ -1409,8 +1413,9 @@ int main(int argc, char** argv) {
   // The whole run's length, its sections and the load after it (other jobs share the machine): added to run.csv.
   std::string sections;
   for (const std::string& x : s.sections) sections += (sections.empty() ? "" : " ") + x;
-  std::ofstream(o + "run.csv", std::ios::app) << "seconds," << secondsSince(start) << "\nloadavg_after," << loadAverage()
-                                               << "\nsections," << sections << "\n";
+  if (perMesh)
+    std::ofstream(o + "run.csv", std::ios::app) << "seconds," << secondsSince(start) << "\nloadavg_after,"
+                                                 << loadAverage() << "\nsections," << sections << "\n";
   std::cout << "clod_bench: done in " << secondsSince(start) << " s\n";
   return 0;
 }
