@@ -28,6 +28,20 @@ void checkMesh(const ByteReader& r, const TriangleMesh& mesh) {
     if (!n.allFinite()) r.fail("a normal is not finite");
   if (!std::isfinite(mesh.scale) || !mesh.offset.allFinite() || !mesh.origin.allFinite())
     r.fail("scale, offset or origin not finite");
+  // The adjacency as computeAdjacency leaves it: whatever a query indexes with it stays in range.
+  const auto nt = static_cast<std::int64_t>(mesh.triangles.size());
+  for (const auto& n : mesh.neighbours)
+    for (std::int32_t t : n)
+      if (t < -1 || t >= nt) r.fail("a neighbour index is out of range");
+  const std::vector<std::uint32_t>& offsets = mesh.cornerOffsets;
+  if (offsets.front() != 0 || offsets.back() != mesh.cornerTriangles.size())
+    r.fail("the corner offsets do not span the corners");
+  for (std::size_t v = 0; v + 1 < offsets.size(); ++v)
+    if (offsets[v] > offsets[v + 1]) r.fail("the corner offsets are not ascending");
+  for (std::uint32_t t : mesh.cornerTriangles)
+    if (t >= mesh.triangles.size()) r.fail("a corner's triangle is out of range");
+  for (float a : mesh.cornerAngles)
+    if (!std::isfinite(a)) r.fail("a corner angle is not finite");
 }
 
 }  // namespace
@@ -46,12 +60,17 @@ std::uint64_t meshSourceKey(const std::string& path, const MeshLoadOptions& opti
 }
 
 void writeMeshBinary(const TriangleMesh& mesh, std::uint64_t sourceKey, const std::string& path) {
-  if (mesh.normals.size() != mesh.triangles.size()) {
-    throw FormatError("cannot write mesh cache file '" + path + "': normals do not match the triangles");
+  if (mesh.normals.size() != mesh.triangles.size() || mesh.neighbours.size() != mesh.triangles.size() ||
+      mesh.cornerOffsets.size() != mesh.vertices.size() + 1 ||
+      mesh.cornerAngles.size() != mesh.cornerTriangles.size()) {
+    throw FormatError("cannot write mesh cache file '" + path +
+                      "': normals, adjacency or corners do not match the triangles (not built by makeMesh)");
   }
+  const std::size_t corners = mesh.cornerTriangles.size();
   detail::ByteWriter w(kMagic, kMeshCacheFormatVersion,
-                       88 + mesh.vertices.size() * sizeof(Vec3) +
-                           mesh.triangles.size() * (sizeof(Triangle) + sizeof(Vec3)) + mesh.name.size());
+                       96 + mesh.vertices.size() * (sizeof(Vec3) + 4) +
+                           mesh.triangles.size() * (sizeof(Triangle) + sizeof(Vec3) + 12) + corners * 8 +
+                           mesh.name.size());
   w.put(static_cast<std::uint32_t>(mesh.flipped));
   w.put(sourceKey);
   w.put(mesh.scale);
@@ -60,9 +79,14 @@ void writeMeshBinary(const TriangleMesh& mesh, std::uint64_t sourceKey, const st
   w.put(static_cast<std::uint64_t>(mesh.vertices.size()));
   w.put(static_cast<std::uint64_t>(mesh.triangles.size()));
   w.put(static_cast<std::uint64_t>(mesh.name.size()));
+  w.put(static_cast<std::uint64_t>(corners));
   w.putArray(mesh.vertices);
   w.putArray(mesh.triangles);
   w.putArray(mesh.normals);
+  w.putArray(mesh.neighbours);
+  w.putArray(mesh.cornerOffsets);
+  w.putArray(mesh.cornerTriangles);
+  w.putArray(mesh.cornerAngles);
   w.putArray(mesh.name);
   w.writeWithChecksum(path, kKind);
 }
@@ -82,15 +106,25 @@ TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey) {
   const auto nv = r.get<std::uint64_t>();
   const auto nt = r.get<std::uint64_t>();
   const auto nameLength = r.get<std::uint64_t>();
-  r.expectArrays({{nv, sizeof(Vec3)}, {nt, sizeof(Triangle)}, {nt, sizeof(Vec3)}, {nameLength, 1}});
+  const auto corners = r.get<std::uint64_t>();
+  r.expectArrays({{nv, sizeof(Vec3)},
+                  {nt, sizeof(Triangle)},
+                  {nt, sizeof(Vec3)},
+                  {nt, sizeof(mesh.neighbours[0])},
+                  {nv + 1, sizeof(std::uint32_t)},
+                  {corners, sizeof(std::uint32_t)},
+                  {corners, sizeof(float)},
+                  {nameLength, 1}});
   if (nt == 0) r.fail("no triangles");
   r.readArray(mesh.vertices, nv);
   r.readArray(mesh.triangles, nt);
   r.readArray(mesh.normals, nt);
+  r.readArray(mesh.neighbours, nt);
+  r.readArray(mesh.cornerOffsets, nv + 1);
+  r.readArray(mesh.cornerTriangles, corners);
+  r.readArray(mesh.cornerAngles, corners);
   r.readArray(mesh.name, nameLength);
   checkMesh(r, mesh);
-  // The adjacency is not stored: it is rebuilt as makeMesh builds it.
-  computeAdjacency(mesh);
   return mesh;
 }
 
