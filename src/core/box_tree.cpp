@@ -12,26 +12,41 @@ namespace {
 using detail::roundDown;
 using detail::roundUp;
 
+// One item as the build moves it: its box and centre beside its index, so that the median split and the box
+// of a range read consecutive memory (through an index array, each level of a large tree missed the cache on
+// every item). The comparisons, hence the tree, are those of a split over the index array.
+struct Item {
+  double c[3];
+  double lo[3];
+  double hi[3];
+  std::uint32_t index;
+};
+
 struct Builder {
-  const std::vector<Eigen::AlignedBox3d>& boxes;
-  std::vector<Eigen::Vector3d> centres;
+  Item* items;
   std::vector<BoxNode>& nodes;
-  std::uint32_t* order;  // this tree's run inside the caller's order array
-  std::uint32_t base;    // position of order[0] in the caller's array
+  std::uint32_t base;  // position of the tree's first item in the caller's order array
   int leafSize;
   double pad;
 
   std::uint32_t build(std::uint32_t begin, std::uint32_t end) {
-    Eigen::AlignedBox3d box, centreBox;
+    constexpr double kBig = std::numeric_limits<double>::max();
+    double lo[3] = {kBig, kBig, kBig}, hi[3] = {-kBig, -kBig, -kBig};
+    double clo[3] = {kBig, kBig, kBig}, chi[3] = {-kBig, -kBig, -kBig};
     for (std::uint32_t i = begin; i < end; ++i) {
-      box.extend(boxes[order[i]]);
-      centreBox.extend(centres[order[i]]);
+      const Item& it = items[i];
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = std::min(lo[k], it.lo[k]);
+        hi[k] = std::max(hi[k], it.hi[k]);
+        clo[k] = std::min(clo[k], it.c[k]);
+        chi[k] = std::max(chi[k], it.c[k]);
+      }
     }
     const std::uint32_t self = static_cast<std::uint32_t>(nodes.size());
     BoxNode node{};
     for (int k = 0; k < 3; ++k) {
-      node.lo[k] = roundDown(box.min()[k] - pad);
-      node.hi[k] = roundUp(box.max()[k] + pad);
+      node.lo[k] = roundDown(lo[k] - pad);
+      node.hi[k] = roundUp(hi[k] + pad);
     }
     nodes.push_back(node);
     if (end - begin <= static_cast<std::uint32_t>(leafSize)) {
@@ -39,11 +54,13 @@ struct Builder {
       nodes[self].count = end - begin;
       return self;
     }
-    int axis;
-    centreBox.sizes().maxCoeff(&axis);
+    // The longest axis of the centres' box, the first on ties.
+    int axis = 0;
+    for (int k = 1; k < 3; ++k)
+      if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
     const std::uint32_t mid = begin + (end - begin) / 2;
-    std::nth_element(order + begin, order + mid, order + end,
-                     [&](std::uint32_t a, std::uint32_t b) { return centres[a][axis] < centres[b][axis]; });
+    std::nth_element(items + begin, items + mid, items + end,
+                     [axis](const Item& a, const Item& b) { return a.c[axis] < b.c[axis]; });
     build(begin, mid);
     const std::uint32_t right = build(mid, end);
     nodes[self].first = right;
@@ -58,12 +75,21 @@ std::uint32_t buildBoxTree(const std::vector<Eigen::AlignedBox3d>& boxes, int le
                            std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order) {
   if (boxes.empty()) return std::numeric_limits<std::uint32_t>::max();
   const std::uint32_t base = static_cast<std::uint32_t>(order.size());
+  std::vector<Item> items(boxes.size());
+  for (std::uint32_t i = 0; i < boxes.size(); ++i) {
+    const Eigen::Vector3d c = boxes[i].center();
+    for (int k = 0; k < 3; ++k) {
+      items[i].c[k] = c[k];
+      items[i].lo[k] = boxes[i].min()[k];
+      items[i].hi[k] = boxes[i].max()[k];
+    }
+    items[i].index = i;
+  }
+  Builder builder{items.data(), nodes, base, std::max(1, leafSize), pad};
+  const std::uint32_t root = builder.build(0, static_cast<std::uint32_t>(boxes.size()));
   order.resize(order.size() + boxes.size());
-  for (std::uint32_t i = 0; i < boxes.size(); ++i) order[base + i] = i;
-  Builder builder{boxes, {}, nodes, order.data() + base, base, std::max(1, leafSize), pad};
-  builder.centres.reserve(boxes.size());
-  for (const auto& b : boxes) builder.centres.push_back(b.center());
-  return builder.build(0, static_cast<std::uint32_t>(boxes.size()));
+  for (std::uint32_t i = 0; i < boxes.size(); ++i) order[base + i] = items[i].index;
+  return root;
 }
 
 }  // namespace clod_haptics
