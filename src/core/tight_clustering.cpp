@@ -175,8 +175,7 @@ std::vector<Vec3> rayDirections() {
 class PatchJudge {
  public:
   PatchJudge(const TriangleMesh& mesh, const TriangleItems& items, const std::vector<std::uint32_t>& order, double d)
-      : mesh_(mesh), items_(items), order_(order), surface_(mesh), bvh_(mesh), dirs_(rayDirections()),
-        d3_(d * d * d) {}
+      : mesh_(mesh), items_(items), order_(order), surface_(mesh), bvh_(mesh), dirs_(rayDirections()), d3_(d * d * d) {}
 
   // Whether node r becomes a sphere; its centre in best either way.
   bool evaluate(Range r, Vec3& best) const {
@@ -421,7 +420,12 @@ SurfaceDistance::SurfaceDistance(const TriangleMesh& mesh) : mesh_(mesh) {
   }
   std::sort(keyed.begin(), keyed.end());
   order_.resize(n);
-  for (std::size_t t = 0; t < n; ++t) order_[t] = keyed[t].second;
+  corners_.resize(9 * n);
+  for (std::size_t t = 0; t < n; ++t) {
+    order_[t] = keyed[t].second;
+    for (int v = 0; v < 3; ++v)
+      for (int k = 0; k < 3; ++k) corners_[9 * t + 3 * v + k] = mesh.vertex(order_[t], v)[k];
+  }
   const std::size_t leaves = (n + kLeaf - 1) / kLeaf;
   leaves_ = 1;
   while (leaves_ < leaves) leaves_ <<= 1;
@@ -461,12 +465,13 @@ double SurfaceDistance::signedDistance(const Vec3& p, double bound) const {
     if (index >= leaves_ - 1) {
       const std::size_t leaf = index - (leaves_ - 1);
       for (std::size_t i = leaf * kLeaf; i < std::min(n, (leaf + 1) * kLeaf); ++i) {
-        const std::uint32_t t = order_[i];
-        const Vec3 q = closestPointOnTriangle(p, mesh_.vertex(t, 0), mesh_.vertex(t, 1), mesh_.vertex(t, 2));
+        const double* c = corners_.data() + 9 * i;
+        const Vec3 q =
+            closestPointOnTriangle(p, Vec3(c[0], c[1], c[2]), Vec3(c[3], c[4], c[5]), Vec3(c[6], c[7], c[8]));
         const double d2 = (q - p).squaredNorm();
         if (d2 < best) {
           best = d2;
-          bestTriangle = t;
+          bestTriangle = order_[i];
           bestPoint = q;
         }
       }

@@ -77,6 +77,7 @@ class SurfaceDistance {
   const TriangleMesh& mesh_;
   std::vector<Box> boxes_;            ///< complete binary tree in heap layout, leaves last
   std::vector<std::uint32_t> order_;  ///< triangles in Morton order, kLeaf per leaf
+  std::vector<double> corners_;       ///< their corners in that order, 9 per triangle (a leaf reads one run)
   std::size_t leaves_ = 0;            ///< leaves in the tree (a power of two)
 };
 
