@@ -9,6 +9,7 @@
 
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
+#include "clod_haptics/core/mesh_box_tree.h"
 #include "enum_names.h"
 #include "float_rounding.h"
 
@@ -32,8 +33,8 @@ struct ClodDetector::Best {
   std::uint32_t triangle = 0;
   std::uint32_t sphere = 0;
   Vec3 point = Vec3::Zero();
-  TriangleRegion region;      // the feature of `triangle` that `point` lies on (exact mode)
-  bool regionKnown = false;   // region holds closestPointOnTriangle's answer (not so in paper mode)
+  TriangleRegion region;     // the feature of `triangle` that `point` lies on (exact mode)
+  bool regionKnown = false;  // region holds closestPointOnTriangle's answer (not so in paper mode)
   std::uint32_t tested = 0;
   std::uint32_t hits = 0;
 
@@ -111,16 +112,6 @@ inline void walkBoxTree(const BoxNode* nodes, std::uint32_t root, const std::uin
       if (dr <= d2) stack[top++] = right;
     }
   }
-}
-
-/** One box tree over all the triangles of the mesh (leaves of 4), in the local frame. */
-void buildMeshTree(const TriangleMesh& m, double pad, std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order) {
-  std::vector<Eigen::AlignedBox3d> boxes(m.size());
-  for (std::size_t t = 0; t < m.size(); ++t) {
-    boxes[t].setEmpty();
-    for (int v = 0; v < 3; ++v) boxes[t].extend(m.vertex(t, v));
-  }
-  buildBoxTree(boxes, 4, pad, nodes, order);
 }
 
 std::vector<double> triangleRecords(const TriangleMesh& m, double pad) {
@@ -263,7 +254,7 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
     if (fastLevel_ == FastLevel::Hierarchy)
       buildTriangleTrees(m, s, pad_, triangleNodes_, triangleOrder_, triangleRoot_);
     else
-      buildMeshTree(m, pad_, meshNodes_, meshOrder_);
+      meshTree_ = meshBoxTreeOf(m);
   }
   // The grid last: its construction peak then meets only the trees kept, not their build's temporaries.
   if (fastLevel_ == FastLevel::Grid) {
@@ -288,8 +279,8 @@ std::size_t ClodDetector::bytes() const noexcept {
   return sizeof(*this) + grid_.bytes() + bytesOf(sphereData_) + bytesOf(triangles_) + bytesOf(sphereNodes_) +
          bytesOf(sphereOrder_) + bytesOf(tightNodes_) + bytesOf(tightOrder_) + bytesOf(triangleNodes_) +
          bytesOf(triangleOrder_) + bytesOf(triangleRoot_) + bytesOf(sphereOfTriangle_) +
-         bytesOf(meshNodes_) + bytesOf(meshOrder_) +
-         bytesOf(gapNodes_) + bytesOf(gapOrder_) + bytesOf(gapRadius_);
+         (meshTree_ ? bytesOf(meshTree_->nodes) + bytesOf(meshTree_->order) : 0) + bytesOf(gapNodes_) +
+         bytesOf(gapOrder_) + bytesOf(gapRadius_);
 }
 
 inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode,
@@ -330,7 +321,7 @@ void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMod
 }
 
 void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const {
-  walkBoxTree(meshNodes_.data(), 0, meshOrder_.data(), p, best.d2,
+  walkBoxTree(meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2,
               [&](std::uint32_t t) { testGridTriangle(t, p, mode, best); });
 }
 
@@ -509,7 +500,8 @@ inline void ClodDetector::search(const Vec3& p, double radius, DetectionMode mod
     preciseGrid(p, mode, best, cache);
     return;
   }
-  if (!meshNodes_.empty()) {  // the grid level beyond its radius: every triangle within it, through one tree
+  if (meshTree_ &&
+      !meshTree_->nodes.empty()) {  // the grid level beyond its radius: every triangle within it, through one tree
     preciseMeshTree(p, mode, best);
     return;
   }
@@ -535,7 +527,8 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
   }
   if (!box.contains(p)) return;
   const double diagonal = box.diagonal().norm();
-  if (!meshNodes_.empty()) {  // one walk of the tree over the mesh finds the nearest within the diagonal
+  if (meshTree_ &&
+      !meshTree_->nodes.empty()) {  // one walk of the tree over the mesh finds the nearest within the diagonal
     search(p, diagonal, mode, best, cache);
     return;
   }

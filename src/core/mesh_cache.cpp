@@ -7,6 +7,7 @@
 
 #include "binary_io.h"
 #include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/mesh_box_tree.h"
 
 namespace clod_haptics {
 
@@ -67,10 +68,11 @@ void writeMeshBinary(const TriangleMesh& mesh, std::uint64_t sourceKey, const st
                       "': normals, adjacency or corners do not match the triangles (not built by makeMesh)");
   }
   const std::size_t corners = mesh.cornerTriangles.size();
+  const std::shared_ptr<const MeshBoxTree> tree = meshBoxTreeOf(mesh);
   detail::ByteWriter w(kMagic, kMeshCacheFormatVersion,
                        96 + mesh.vertices.size() * (sizeof(Vec3) + 4) +
-                           mesh.triangles.size() * (sizeof(Triangle) + sizeof(Vec3) + 12) + corners * 8 +
-                           mesh.name.size());
+                           mesh.triangles.size() * (sizeof(Triangle) + sizeof(Vec3) + 16) + corners * 8 +
+                           tree->nodes.size() * sizeof(BoxNode) + mesh.name.size());
   w.put(static_cast<std::uint32_t>(mesh.flipped));
   w.put(sourceKey);
   w.put(mesh.scale);
@@ -80,6 +82,7 @@ void writeMeshBinary(const TriangleMesh& mesh, std::uint64_t sourceKey, const st
   w.put(static_cast<std::uint64_t>(mesh.triangles.size()));
   w.put(static_cast<std::uint64_t>(mesh.name.size()));
   w.put(static_cast<std::uint64_t>(corners));
+  w.put(static_cast<std::uint64_t>(tree->nodes.size()));
   w.putArray(mesh.vertices);
   w.putArray(mesh.triangles);
   w.putArray(mesh.normals);
@@ -87,6 +90,8 @@ void writeMeshBinary(const TriangleMesh& mesh, std::uint64_t sourceKey, const st
   w.putArray(mesh.cornerOffsets);
   w.putArray(mesh.cornerTriangles);
   w.putArray(mesh.cornerAngles);
+  w.putArray(tree->nodes);
+  w.putArray(tree->order);
   w.putArray(mesh.name);
   w.writeWithChecksum(path, kKind);
 }
@@ -107,6 +112,7 @@ TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey) {
   const auto nt = r.get<std::uint64_t>();
   const auto nameLength = r.get<std::uint64_t>();
   const auto corners = r.get<std::uint64_t>();
+  const auto treeNodes = r.get<std::uint64_t>();
   r.expectArrays({{nv, sizeof(Vec3)},
                   {nt, sizeof(Triangle)},
                   {nt, sizeof(Vec3)},
@@ -114,6 +120,8 @@ TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey) {
                   {nv + 1, sizeof(std::uint32_t)},
                   {corners, sizeof(std::uint32_t)},
                   {corners, sizeof(float)},
+                  {treeNodes, sizeof(BoxNode)},
+                  {nt, sizeof(std::uint32_t)},
                   {nameLength, 1}});
   if (nt == 0) r.fail("no triangles");
   r.readArray(mesh.vertices, nv);
@@ -123,8 +131,14 @@ TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey) {
   r.readArray(mesh.cornerOffsets, nv + 1);
   r.readArray(mesh.cornerTriangles, corners);
   r.readArray(mesh.cornerAngles, corners);
+  auto tree = std::make_shared<MeshBoxTree>();
+  r.readArray(tree->nodes, treeNodes);
+  r.readArray(tree->order, nt);
   r.readArray(mesh.name, nameLength);
   checkMesh(r, mesh);
+  const std::string treeProblem = meshBoxTreeProblem(*tree, mesh);
+  if (!treeProblem.empty()) r.fail("box tree: " + treeProblem);
+  mesh.boxTree = std::move(tree);
   return mesh;
 }
 
@@ -156,6 +170,7 @@ TriangleMesh MeshCache::load(const std::string& path, const MeshLoadOptions& opt
       },
       [&] {
         mesh = loadMesh(path, options);
+        mesh.boxTree = buildMeshBoxTree(mesh);  // stored with it, and shared by its detectors from now on
         parsed_.fetch_add(1);
       },
       [&](const std::string& tmp) { writeMeshBinary(mesh, key, tmp); });

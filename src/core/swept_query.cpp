@@ -6,6 +6,7 @@
 
 #include "clod_haptics/core/contact.h"
 #include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/mesh_box_tree.h"
 
 namespace clod_haptics {
 namespace {
@@ -221,7 +222,6 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
   if (!mesh_) throw InvalidParameter("SweptSphereQuery: null mesh");
   if (detector_ && detector_->mesh() != mesh_) throw InvalidParameter("SweptSphereQuery: detector of another mesh");
   if (detector_ && !detector_->grid().empty()) grid_ = &detector_->grid();
-  std::vector<Eigen::AlignedBox3d> boxes(mesh_->size());
   records_.resize(13 * mesh_->size());
   for (std::size_t t = 0; t < mesh_->size(); ++t) {
     double* rec = records_.data() + 13 * t;
@@ -230,12 +230,10 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
     for (int k = 0; k < 3; ++k) {
       rec[k] = c[k];
       for (int j = 0; j < 3; ++j) rec[4 + 3 * k + j] = mesh_->vertex(t, k)[j];
-      boxes[t].extend(mesh_->vertex(t, k));
     }
   }
-  const Eigen::AlignedBox3d bounds = mesh_->bounds();
-  const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());
-  buildBoxTree(boxes, 4, 1e-12 * std::max(magnitude, bounds.diagonal().norm()), nodes_, order_);
+  // One tree over the mesh, shared: the grid detector's, else the mesh's own when it fits, else built here.
+  tree_ = detector_ && detector_->meshTree() ? detector_->meshTree() : meshBoxTreeOf(*mesh_);
 }
 
 void SweptSphereQuery::testTriangle(std::uint32_t t, const Vec3& a, const Vec3& d, double R,
@@ -379,7 +377,9 @@ inline double enterGrownBox(const BoxNode& n, const Vec3& a, const Vec3& d, doub
 }  // namespace
 
 void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept {
-  if (nodes_.empty()) return;
+  const std::vector<BoxNode>& nodes = tree_->nodes;
+  const std::vector<std::uint32_t>& order = tree_->order;
+  if (nodes.empty()) return;
   // The grown box holds every centre within R of the node's triangles; its rounding is covered by a margin.
   const double grow = R * (1.0 + 1e-12) + 1e-12 * magnitudeOf(a, a + d);
   struct Item {
@@ -388,18 +388,18 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
   };
   Item stack[128];
   int top = 0;
-  const double t = enterGrownBox(nodes_[0], a, d, grow);
+  const double t = enterGrownBox(nodes[0], a, d, grow);
   if (t != kNever) stack[top++] = {0, t};
   while (top > 0) {
     const Item item = stack[--top];
     if (item.t > best.toi) continue;  // every contact inside comes later
-    const BoxNode& node = nodes_[item.node];
+    const BoxNode& node = nodes[item.node];
     if (node.count > 0) {
-      for (std::uint32_t i = node.first; i < node.first + node.count; ++i) testTriangle(order_[i], a, d, R, best);
+      for (std::uint32_t i = node.first; i < node.first + node.count; ++i) testTriangle(order[i], a, d, R, best);
       continue;
     }
     const std::uint32_t left = item.node + 1, right = node.first;
-    const double tl = enterGrownBox(nodes_[left], a, d, grow), tr = enterGrownBox(nodes_[right], a, d, grow);
+    const double tl = enterGrownBox(nodes[left], a, d, grow), tr = enterGrownBox(nodes[right], a, d, grow);
     // The nearer child on top of the stack.
     if (tl <= tr) {
       if (tr != kNever) stack[top++] = {right, tr};

@@ -9,6 +9,7 @@
 #include "clod_haptics/core/cell_grid.h"
 #include "clod_haptics/core/contact.h"
 #include "clod_haptics/core/mesh.h"
+#include "clod_haptics/core/mesh_box_tree.h"
 #include "clod_haptics/core/sphere_set.h"
 
 namespace clod_haptics {
@@ -107,6 +108,8 @@ class ClodDetector {
 
   /** \brief The mesh. */
   const std::shared_ptr<const TriangleMesh>& mesh() const { return mesh_; }
+  /** \brief The grid level's box tree over the mesh (shared with the mesh and its swept queries); null otherwise. */
+  const std::shared_ptr<const MeshBoxTree>& meshTree() const { return meshTree_; }
   /** \brief The sphere set. */
   const std::shared_ptr<const ClodSphereSet>& spheres() const { return spheres_; }
   /** \brief The fast-level strategy in use. */
@@ -182,9 +185,9 @@ class ClodDetector {
   // Grid: the fast level per cell, and the first sphere listing each triangle.
   CellGrid grid_;
   std::vector<std::uint32_t> sphereOfTriangle_;
-  // Grid: one tree over all the triangles, for pointers beyond the grid's radius and the deep search.
-  std::vector<BoxNode> meshNodes_;
-  std::vector<std::uint32_t> meshOrder_;
+  // Grid: one tree over all the triangles, for pointers beyond the grid's radius and the deep search (the mesh's
+  // own when it brings one that fits, see meshBoxTreeOf).
+  std::shared_ptr<const MeshBoxTree> meshTree_;
   const Triangle* triangleIndex_ = nullptr;  // the mesh's arrays (kept alive by mesh_)
   const Vec3* vertices_ = nullptr;
   const Vec3* normals_ = nullptr;

@@ -2,6 +2,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,8 @@ namespace clod_haptics {
 using Vec3 = Eigen::Vector3d;
 /** \brief Vertex indices of one triangle. */
 using Triangle = std::array<std::uint32_t, 3>;
+
+struct MeshBoxTree;
 
 /**
  * \brief An indexed triangle mesh in double precision, the geometry every other piece reads.
@@ -50,6 +53,10 @@ struct TriangleMesh {
   double scale = 1.0;               ///< factor applied to the source coordinates
   Vec3 offset = Vec3::Zero();       ///< translation applied after scaling (normalising only)
   bool flipped = false;             ///< windings were reversed at load to make normals point outward
+  /// The box tree over the triangles (mesh_box_tree.h) when the mesh came with one (MeshCache stores it): shared by
+  /// every detector and swept query of the mesh, each of which checks it against the vertices before use and builds
+  /// its own otherwise. Null after makeMesh or loadMesh.
+  std::shared_ptr<const MeshBoxTree> boxTree;
 
   /** \brief Number of triangles. */
   std::size_t size() const { return triangles.size(); }

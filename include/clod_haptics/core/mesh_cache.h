@@ -13,9 +13,10 @@ namespace clod_haptics {
 /**
  * \brief Version of the binary mesh cache format; part of every key and file header. 2: vertices read in
  * double by the strict readers; 3: vertices relative to the mesh's local origin, which is stored; 4: the
- * adjacency and the vertex corners are stored (rebuilding them was 85% of a read).
+ * adjacency and the vertex corners are stored (rebuilding them was 85% of a read); 5: the box tree over the
+ * triangles too (MeshBoxTree), which the grid detectors and swept queries of the mesh then share.
  */
-constexpr std::uint32_t kMeshCacheFormatVersion = 4;
+constexpr std::uint32_t kMeshCacheFormatVersion = 5;
 
 /**
  * \brief The key of a loaded mesh: a hash of the source file's bytes and of the load options (scale,
@@ -26,8 +27,9 @@ constexpr std::uint32_t kMeshCacheFormatVersion = 4;
 std::uint64_t meshSourceKey(const std::string& path, const MeshLoadOptions& options);
 
 /**
- * \brief Writes a loaded mesh (vertices, triangles, normals, adjacency and vertex corners, scale, offset,
- * orientation flag, name) in a binary format with a header and a checksum.
+ * \brief Writes a loaded mesh (vertices, triangles, normals, adjacency and vertex corners, its box tree (mesh.boxTree
+ * when it fits, else one built here), scale, offset, orientation flag, name) in a binary format with a header and a
+ * checksum.
  * \throws FormatError when the file cannot be written.
  */
 void writeMeshBinary(const TriangleMesh& mesh, std::uint64_t sourceKey, const std::string& path);
@@ -35,7 +37,8 @@ void writeMeshBinary(const TriangleMesh& mesh, std::uint64_t sourceKey, const st
 /**
  * \brief Reads what writeMeshBinary wrote and checks it: magic, version, key, sizes, checksum, every
  * index in range (vertices, neighbours, corners' triangles), corner offsets ascending over the corners, and
- * every coordinate and angle finite.
+ * every coordinate and angle finite, and the box tree serving the mesh (meshBoxTreeProblem); the mesh read
+ * carries that tree in boxTree.
  * \throws FormatError naming the first check that failed.
  */
 TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey);
@@ -52,7 +55,8 @@ class MeshCache : public DiskCache {
 
   /**
    * \brief The mesh at path loaded with options: from the cache when a valid file exists, else with
-   * loadMesh() (then stored). outcome reports which, and any problem.
+   * loadMesh() (then stored). Either way the mesh carries its box tree (boxTree), which its grid detectors and swept
+   * queries share instead of building one each. outcome reports which, and any problem.
    * \throws MeshLoadError, InvalidParameter as loadMesh.
    */
   TriangleMesh load(const std::string& path, const MeshLoadOptions& options = {}, CacheOutcome* outcome = nullptr);

@@ -8,6 +8,7 @@
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/geometry.h"
 #include "clod_haptics/core/mesh.h"
+#include "clod_haptics/core/mesh_box_tree.h"
 
 namespace clod_haptics {
 
@@ -71,8 +72,8 @@ SweptContact bruteForceSweep(const TriangleMesh& mesh, const Vec3& a, const Vec3
  * every contact at radius r is found; a triangle that comes within the rounding margin beyond the grid's
  * radius but never within it may be passed over there (the answer then differs from bruteForceSweep's only
  * within that margin, and still reports no path free that is blocked at radius r).
- * Larger radii, or a mesh without a grid, walk a box tree over the triangles (the BoxNode tree of the
- * detector's hierarchy, built here over triangles) with the capsule, nearest node first.
+ * Larger radii, or a mesh without a grid, walk the box tree over the triangles (MeshBoxTree: the grid detector's,
+ * else the mesh's own when it fits, else built here) with the capsule, nearest node first.
  *
  * Immutable after construction: sweep() is const, allocates nothing, never throws, and may run on many
  * threads at once.
@@ -109,10 +110,9 @@ class SweptSphereQuery {
 
   std::shared_ptr<const TriangleMesh> mesh_;
   std::shared_ptr<const ClodDetector> detector_;
-  const CellGrid* grid_ = nullptr;  // the detector's grid, null when it has none
-  std::vector<double> records_;     // per triangle: its ball (centre, radius), then its corners (local frame)
-  std::vector<BoxNode> nodes_;      // box tree over the triangles (local frame)
-  std::vector<std::uint32_t> order_;
+  const CellGrid* grid_ = nullptr;           // the detector's grid, null when it has none
+  std::vector<double> records_;              // per triangle: its ball (centre, radius), then its corners (local frame)
+  std::shared_ptr<const MeshBoxTree> tree_;  // box tree over the triangles (local frame), the mesh's when it fits
 };
 
 }  // namespace clod_haptics
