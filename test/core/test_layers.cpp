@@ -28,7 +28,7 @@ const std::map<std::string, int> kCoreLayer = {
     {"geometry", 1},         {"mesh_loader", 1},    {"morton", 1},           {"probes", 1},
     {"contact", 2},          {"brute_force", 2},    {"sphere_placement", 3}, {"clustering", 3},
     {"tight_clustering", 3}, {"sphere_set", 4},     {"sphere_set_io", 4},    {"box_tree", 2},
-    {"triangle_bvh", 2},     {"cell_grid", 5},      {"detector", 6},         {"scene", 7},
+    {"triangle_bvh", 2},     {"mesh_box_tree", 2},  {"cell_grid", 5},      {"detector", 6},         {"scene", 7},
     {"sphere_cache", 7},     {"grid_cache", 7},     {"binary_io", 7},      {"mesh_cache", 7},       {"scene_assets", 8},
     {"polygon_soup", 1},     {"text_scanner", 1},   {"read_off", 1},         {"read_obj", 1},
     {"read_ply", 1},         {"read_stl", 1},
