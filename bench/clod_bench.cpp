@@ -1331,8 +1331,6 @@ int main(int argc, char** argv) {
          << "\nuniform_margin," << s.r << "\ntrajectory,\"" << run.trajectoryNote << "\"\nns_per_tick,"
          << Clock::nsPerTick << "\ntimer_overhead_ns," << Clock::overheadTicks * Clock::nsPerTick
          << "\nreport_d," << s.reportD << "\nrounds," << s.rounds << "\nloadavg_before," << loadAverage() << "\n";
-  }
-  if (perMesh) {
     run.build = std::make_unique<Csv>(o + "build.csv",
                                       "mesh,triangles,d,centres,spheres,step_reduction,total_reduction,placement_ms,"
                                       "build_ms,max_tris_per_sphere,mean_tris_per_sphere,unpaired,degenerate,open_edges");

@@ -226,9 +226,9 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   if (!misfit.empty())
     throw SphereSetMismatch("ClodDetector: the sphere set does not fit mesh '" + m.name + "': " + misfit);
   const Eigen::AlignedBox3d bounds = m.bounds();
-  // Padding relative to the coordinates' magnitude: covers rounding in every bound test.
-  const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());
-  pad_ = 1e-12 * std::max(magnitude, bounds.diagonal().norm());
+  // Padding relative to the coordinates' magnitude: covers rounding in every bound test. The mesh's box tree is
+  // padded alike, so the tree shared with the mesh is the one this detector would build.
+  pad_ = meshBoxTreePad(m);
   for (std::size_t i = 0; i < s.size(); ++i) {
     reachFromCentre_ = std::max(reachFromCentre_, (s.centres[i] - bounds.center()).norm() + s.radii[i]);
     reachBeyondBox_ = std::max(reachBeyondBox_, bounds.exteriorDistance(s.centres[i]) + s.radii[i]);
@@ -500,8 +500,8 @@ inline void ClodDetector::search(const Vec3& p, double radius, DetectionMode mod
     preciseGrid(p, mode, best, cache);
     return;
   }
-  if (meshTree_ &&
-      !meshTree_->nodes.empty()) {  // the grid level beyond its radius: every triangle within it, through one tree
+  // The grid level beyond its radius: every triangle within it, through one tree.
+  if (meshTree_ && !meshTree_->nodes.empty()) {
     preciseMeshTree(p, mode, best);
     return;
   }
@@ -527,8 +527,8 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
   }
   if (!box.contains(p)) return;
   const double diagonal = box.diagonal().norm();
-  if (meshTree_ &&
-      !meshTree_->nodes.empty()) {  // one walk of the tree over the mesh finds the nearest within the diagonal
+  // One walk of the tree over the mesh finds the nearest within the diagonal.
+  if (meshTree_ && !meshTree_->nodes.empty()) {
     search(p, diagonal, mode, best, cache);
     return;
   }

@@ -154,13 +154,6 @@ struct Candidate {
 
 inline double capVolume(double r, double h) { return 0.25 * h * h * (3.0 * r - h); }
 
-// Whether a node becomes a sphere, and its centre. Excess of a sphere: the volume of its cap beyond the
-// tangent plane at the surface point nearest to its centre, over 4/3 pi (so that it compares with d^3):
-// with rho the signed distance of the centre and h = R - rho the cap's height, h^2 (3R - h) / 4; a centre
-// outside counts as h = 2R (the whole ball). The excess grows with h, and rho is at most the distance to
-// the nearest vertex of the node's own triangles, so R minus that distance bounds h from below: a
-// candidate whose bound already exceeds d^3 or the best exact excess found gets no distance query (the
-// costly part); the decision and the chosen centre are those of exact values.
 // Unit directions spread over the sphere (a Fibonacci lattice).
 std::vector<Vec3> rayDirections() {
   std::vector<Vec3> dirs(kRays);
@@ -172,6 +165,13 @@ std::vector<Vec3> rayDirections() {
   return dirs;
 }
 
+// Whether a node becomes a sphere, and its centre. Excess of a sphere: the volume of its cap beyond the
+// tangent plane at the surface point nearest to its centre, over 4/3 pi (so that it compares with d^3):
+// with rho the signed distance of the centre and h = R - rho the cap's height, h^2 (3R - h) / 4; a centre
+// outside counts as h = 2R (the whole ball). The excess grows with h, and rho is at most the distance to
+// the nearest vertex of the node's own triangles, so R minus that distance bounds h from below: a
+// candidate whose bound already exceeds d^3 or the best exact excess found gets no distance query (the
+// costly part); the decision and the chosen centre are those of exact values.
 class PatchJudge {
  public:
   PatchJudge(const TriangleMesh& mesh, const TriangleItems& items, const std::vector<std::uint32_t>& order, double d)
@@ -433,13 +433,12 @@ SurfaceDistance::SurfaceDistance(const TriangleMesh& mesh) : mesh_(mesh) {
   for (std::size_t l = 0; l < leaves; ++l) {
     Box& b = boxes_[leaves_ - 1 + l];
     for (std::size_t i = l * kLeaf; i < std::min(n, (l + 1) * kLeaf); ++i)
-      for (int v = 0; v < 3; ++v) {
-        const Vec3& p = mesh.vertex(order_[i], v);
+      for (int v = 0; v < 3; ++v)
         for (int k = 0; k < 3; ++k) {
-          b.lo[k] = std::min(b.lo[k], p[k]);
-          b.hi[k] = std::max(b.hi[k], p[k]);
+          const double x = corners_[9 * i + 3 * v + k];
+          b.lo[k] = std::min(b.lo[k], x);
+          b.hi[k] = std::max(b.hi[k], x);
         }
-      }
   }
   for (std::size_t i = leaves_ - 1; i-- > 0;)
     for (int k = 0; k < 3; ++k) {
