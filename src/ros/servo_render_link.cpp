@@ -50,8 +50,8 @@ Eigen::Isometry3d sceneFromDevice(const std::string& sceneFrame, const std::stri
   try {
     return toIsometry(buffer.lookupTransform(sceneFrame, deviceFrame, ros::Time(0), ros::Duration(5.0)).transform);
   } catch (const tf2::TransformException& e) {
-    throw std::runtime_error("no transform from the device's frame '" + deviceFrame + "' to the mesh's '" +
-                             sceneFrame + "': " + e.what());
+    throw std::runtime_error("no transform from the device's frame '" + deviceFrame + "' to the mesh's '" + sceneFrame +
+                             "': " + e.what());
   }
 }
 
@@ -59,21 +59,14 @@ Eigen::Isometry3d sceneFromDevice(const std::string& sceneFrame, const std::stri
 
 ServoRenderLink::ServoRenderLink(ros::NodeHandle nh, const std::string& detectorNs, const std::string& deviceFrame) {
   const ros::NodeHandle detector(nh, detectorNs);
-  std::string model = "proxy", frame = "world";
-  detector.param("force_model", model, model);
+  std::string frame = "world";
   detector.param("frame_id", frame, frame);
-  ProxyParameters& p = settings_.proxy;
-  detector.param("pointer_radius", p.radius, p.radius);
-  detector.param("stiffness", p.stiffness, p.stiffness);
-  detector.param("damping", p.damping, p.damping);
-  detector.param("max_force", p.maxForce, p.maxForce);
-  detector.param("mu_static", p.muStatic, p.muStatic);
-  detector.param("mu_dynamic", p.muDynamic, p.muDynamic);
-  detector.param("force_shading", p.forceShading, p.forceShading);
-  settings_.enabled = model == "proxy";
-  enabled_ = settings_.enabled;
+  // The detector's reconfigurable parameters as its server publishes them (Detector.cfg's defaults where unset).
+  config_ = DetectorConfig::__getDefault__();
+  config_.__fromServer__(detector);
+  follow();
   std::string what;
-  auto scene = loadScene(detector, p.radius, what);
+  auto scene = loadScene(detector, settings_.proxy.radius, what);
   settings_.sceneFromDevice = sceneFromDevice(frame, deviceFrame);
   renderer_ = std::make_shared<ServoRenderer>(std::move(scene), settings_);
   description_ = what + (frame == deviceFrame ? "" : ", device frame '" + deviceFrame + "' to '" + frame + "'");
@@ -82,21 +75,24 @@ ServoRenderLink::ServoRenderLink(ros::NodeHandle nh, const std::string& detector
       [this](const dynamic_reconfigure::Config::ConstPtr& config) { apply(*config); });
 }
 
-void ServoRenderLink::apply(const dynamic_reconfigure::Config& config) {
+void ServoRenderLink::follow() {
   ProxyParameters& p = settings_.proxy;
-  for (const auto& d : config.doubles) {
-    if (d.name == "pointer_radius") p.radius = d.value;
-    else if (d.name == "stiffness") p.stiffness = d.value;
-    else if (d.name == "damping") p.damping = d.value;
-    else if (d.name == "max_force") p.maxForce = d.value;
-    else if (d.name == "mu_static") p.muStatic = d.value;
-    else if (d.name == "mu_dynamic") p.muDynamic = d.value;
-  }
-  for (const auto& b : config.bools)
-    if (b.name == "force_shading") p.forceShading = b.value;
-  for (const auto& s : config.strs)
-    if (s.name == "force_model") settings_.enabled = s.value == "proxy";
+  p.radius = config_.pointer_radius;
+  p.stiffness = config_.stiffness;
+  p.damping = config_.damping;
+  p.maxForce = config_.max_force;
+  p.muStatic = config_.mu_static;
+  p.muDynamic = config_.mu_dynamic;
+  p.forceShading = config_.force_shading;
+  settings_.enabled = config_.force_model == "proxy";
   enabled_ = settings_.enabled;
+}
+
+void ServoRenderLink::apply(const dynamic_reconfigure::Config& config) {
+  // The fields the update carries; the others keep their values.
+  dynamic_reconfigure::Config copy = config;
+  config_.__fromMessage__(copy);
+  follow();
   renderer_->configure(settings_);
 }
 

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <clod_haptics/DetectorConfig.h>
 #include <dynamic_reconfigure/Config.h>
 #include <ros/ros.h>
 
@@ -40,6 +41,9 @@ class ServoRenderLink {
   void apply(const dynamic_reconfigure::Config& config);
 
  private:
+  void follow();  // settings_ from config_
+
+  DetectorConfig config_;         // the detector's parameters as last seen (ROS callback thread after construction)
   ServoRenderSettings settings_;  // ROS callback thread after construction
   std::atomic<bool> enabled_{true};
   std::shared_ptr<ServoRenderer> renderer_;
