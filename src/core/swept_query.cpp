@@ -7,11 +7,14 @@
 #include "clod_haptics/core/contact.h"
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/mesh_box_tree.h"
+#include "simd/cell_scan_avx2.h"
+#include "simd/dispatch.h"
 
 namespace clod_haptics {
 namespace {
 
 constexpr double kNever = std::numeric_limits<double>::infinity();
+constexpr std::size_t kRecord = 17;  // doubles per triangle: ball (centre, radius), unit normal, thickness, corners
 
 // First t in [0, 1] at which the centre a + t d enters the sphere of radius R around v, the centre
 // starting outside it (m = a - v). C / (-B + sqrt(disc)) is the smaller root without cancellation.
@@ -77,11 +80,32 @@ inline void boundingBall(const Vec3& v0, const Vec3& v1, const Vec3& v2, Vec3& c
 }
 
 // Whether the capsule (a -> a + tMax d, radius R) cannot reach the ball (c, rho) around a triangle.
-inline bool capsuleMissesBall(const Vec3& c, double rho, const Vec3& a, const Vec3& d, double dd, double R,
+// invdd: 1 / |d|^2, or 0 for a zero-length sweep.
+inline bool capsuleMissesBall(const Vec3& c, double rho, const Vec3& a, const Vec3& d, double invdd, double R,
                               double tMax) {
-  const double t = dd > 0.0 ? std::clamp((c - a).dot(d) / dd, 0.0, std::min(1.0, tMax)) : 0.0;
+  const double t = std::clamp((c - a).dot(d) * invdd, 0.0, std::min(1.0, tMax));
   const double reach = (rho + R) * (1.0 + 1e-12);
   return (a + t * d - c).squaredNorm() > reach * reach;
+}
+
+// Whether the sweep up to tMax stays farther than reach from every point of a triangle that lies within rho of c
+// and within thick of the plane through c with unit normal n. Such a point is at least max(0, |s| - thick) from the
+// centre across the plane (s: the centre's height over it) and |q - c| - rho along it (q: the centre's projection),
+// and the smallest sum of squares over the sweep is at least the sum of the two smallest. It drops the neighbours
+// of a contact on a flat or concave surface, which the ball test keeps: a sphere resting on a finely tessellated
+// plane has every triangle within r of its footprint inside the ball, and only those under its centre within reach.
+inline bool planeBoundMisses(const Vec3& c, double rho, const Vec3& n, double thick, const Vec3& a, const Vec3& d,
+                             double reach, double tMax) {
+  const double end = std::min(1.0, tMax);
+  const Vec3 m = a - c;
+  const double s0 = n.dot(m), sd = n.dot(d), s1 = s0 + end * sd;
+  const double across = s0 * s1 <= 0.0 ? 0.0 : std::max(0.0, std::min(std::abs(s0), std::abs(s1)) - thick);
+  if (across > reach) return true;
+  const Vec3 mp = m - s0 * n, dp = d - sd * n;  // the centre's motion projected on the plane
+  const double dpp = dp.squaredNorm();
+  const double t = dpp > 0.0 ? std::clamp(-mp.dot(dp) / dpp, 0.0, end) : 0.0;
+  const double along = std::max(0.0, (mp + t * dp).norm() - rho);
+  return across * across + along * along > reach * reach;
 }
 
 // sweptSphereTriangle after the capsule test.
@@ -132,7 +156,7 @@ bool sweptSphereTriangle(const Vec3& a, const Vec3& d, double R, const Vec3& v0,
   Vec3 c;
   double rho;
   boundingBall(v0, v1, v2, c, rho);
-  if (capsuleMissesBall(c, rho, a, d, dd, R, tMax)) return false;
+  if (capsuleMissesBall(c, rho, a, d, dd > 0.0 ? 1.0 / dd : 0.0, R, tMax)) return false;
   return exactSweep(a, d, dd, R, v0, v1, v2, toi, startInContact, tMax);
 }
 
@@ -146,6 +170,8 @@ struct SweptSphereQuery::Best {
   std::int32_t triangle = -1;
   bool start = false;
   std::uint32_t tested = 0;
+  double reach = 0.0;  // R with the rounding slack of planeBoundMisses
+  double invdd = 0.0;  // 1 / |d|^2 of the sweep (0 for a zero-length one)
   std::uint32_t seen[64];
   Best() { std::fill(seen, seen + 64, ~0u); }
   bool firstTime(std::uint32_t t) {
@@ -222,15 +248,25 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
   if (!mesh_) throw InvalidParameter("SweptSphereQuery: null mesh");
   if (detector_ && detector_->mesh() != mesh_) throw InvalidParameter("SweptSphereQuery: detector of another mesh");
   if (detector_ && !detector_->grid().empty()) grid_ = &detector_->grid();
-  records_.resize(13 * mesh_->size());
+  records_.resize(kRecord * mesh_->size());
   for (std::size_t t = 0; t < mesh_->size(); ++t) {
-    double* rec = records_.data() + 13 * t;
+    double* rec = records_.data() + kRecord * t;
+    const Vec3 &v0 = mesh_->vertex(t, 0), &v1 = mesh_->vertex(t, 1), &v2 = mesh_->vertex(t, 2);
     Vec3 c;
-    boundingBall(mesh_->vertex(t, 0), mesh_->vertex(t, 1), mesh_->vertex(t, 2), c, rec[3]);
+    boundingBall(v0, v1, v2, c, rec[3]);
+    // Any unit normal serves (the thickness measures how far the corners are off its plane); none for a
+    // degenerate triangle, whose bound is then the ball's.
+    Vec3 n = (v1 - v0).cross(v2 - v0);
+    const double length = n.norm();
+    n = length > 0.0 && std::isfinite(length) ? Vec3(n / length) : Vec3::Zero();
+    double thick = 0.0;
+    for (const Vec3* v : {&v0, &v1, &v2}) thick = std::max(thick, std::abs(n.dot(*v - c)));
     for (int k = 0; k < 3; ++k) {
       rec[k] = c[k];
-      for (int j = 0; j < 3; ++j) rec[4 + 3 * k + j] = mesh_->vertex(t, k)[j];
+      rec[4 + k] = n[k];
+      for (int j = 0; j < 3; ++j) rec[8 + 3 * k + j] = mesh_->vertex(t, k)[j];
     }
+    rec[7] = thick * (1.0 + 1e-9) + 1e-12 * rec[3];  // its own rounding covered
   }
   // One tree over the mesh, shared: the grid detector's, else the mesh's own when it fits, else built here.
   tree_ = detector_ && detector_->meshTree() ? detector_->meshTree() : meshBoxTreeOf(*mesh_);
@@ -239,15 +275,17 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
 void SweptSphereQuery::testTriangle(std::uint32_t t, const Vec3& a, const Vec3& d, double R,
                                     Best& best) const noexcept {
   if (!best.firstTime(t)) return;
-  // One record of 13 doubles: the ball first (often all a test reads), then the corners.
-  const double* rec = records_.data() + 13 * static_cast<std::size_t>(t);
+  // One record: the ball first (often all a test reads), the plane, then the corners.
+  const double* rec = records_.data() + kRecord * static_cast<std::size_t>(t);
   ++best.tested;
+  const Vec3 c(rec[0], rec[1], rec[2]);
+  if (capsuleMissesBall(c, rec[3], a, d, best.invdd, R, best.toi)) return;
   const double dd = d.squaredNorm();
-  if (capsuleMissesBall(Vec3(rec[0], rec[1], rec[2]), rec[3], a, d, dd, R, best.toi)) return;
+  if (planeBoundMisses(c, rec[3], Vec3(rec[4], rec[5], rec[6]), rec[7], a, d, best.reach, best.toi)) return;
   double toi;
   bool start = false;
-  if (exactSweep(a, d, dd, R, Vec3(rec[4], rec[5], rec[6]), Vec3(rec[7], rec[8], rec[9]),
-                 Vec3(rec[10], rec[11], rec[12]), toi, start, best.toi))
+  if (exactSweep(a, d, dd, R, Vec3(rec[8], rec[9], rec[10]), Vec3(rec[11], rec[12], rec[13]),
+                 Vec3(rec[14], rec[15], rec[16]), toi, start, best.toi))
     best.offer(t, toi, start);
 }
 
@@ -258,6 +296,10 @@ void SweptSphereQuery::sweep(const Vec3& a, const Vec3& b, double r, SweptContac
   const Vec3 la = mesh_->toLocal(a), lb = mesh_->toLocal(b), d = lb - la;
   const double R = sweptRadiusMargin(r, magnitudeOf(la, lb));
   Best best;
+  // The bound's own rounding: relative to R, and to the coordinates it subtracts.
+  best.reach = R * (1.0 + 1e-9) + 1e-14 * magnitudeOf(la, lb);
+  const double dd = d.squaredNorm();
+  best.invdd = dd > 0.0 ? 1.0 / dd : 0.0;
   // A likely first contact tested first: its time bounds the search from the start.
   if (hint >= 0 && static_cast<std::size_t>(hint) < mesh_->size())
     testTriangle(static_cast<std::uint32_t>(hint), la, d, R, best);
@@ -340,18 +382,39 @@ void SweptSphereQuery::sweepCell(std::uint64_t key, const Vec3& p0, const Vec3& 
   };
   shrink();
   const double unit = grid.distanceUnit();
-  for (std::uint32_t i = 0; i < cell.count; ++i) {
-    const CellGrid::Entry& e = cell.entries[i];
+  // The double test of one entry: whether it is tested, and whether the scan is over.
+  auto visit = [&](const CellGrid::Entry& e) {
     const double dc = e.distance * unit;
     // distance(p, T) >= dc - |p - centre| on the whole piece (the farthest point is an end): sorted, so stop.
-    if (dc - reach > R) break;
+    if (dc - reach > R) return false;
     // distance(p, T) >= dc + (p - centre) . u, linear along the piece: its smaller end bounds it.
     const double u0 = (r0.x() * e.direction[0] + r0.y() * e.direction[1] + r0.z() * e.direction[2]) * (1.0 / 127.0);
     const double u1 = (r1.x() * e.direction[0] + r1.y() * e.direction[1] + r1.z() * e.direction[2]) * (1.0 / 127.0);
-    if (std::min(u0 - along * n0, u1 - along * n1) + dc - slack > R) continue;
+    if (std::min(u0 - along * n0, u1 - along * n1) + dc - slack > R) return true;
     testTriangle(e.triangle, a, d, R, best);
     if (best.toi < end) shrink();
+    return true;
+  };
+  std::uint32_t i = 0;
+#if defined(CLOD_PACKET_AVX2)
+  // Eight entries at a time through a float filter that keeps every entry the double test keeps; the double test
+  // then runs on those alone, with the bounds as they stand, so the same triangles are tested in the same order.
+  if (cell.count >= 16 && detail::packetAvx2()) {
+    double boundsEnd = end;
+    detail::CellScanBounds bounds = detail::cellScanBounds(r0, r1, -along * n0, -along * n1, unit, R + slack, reach);
+    for (; i + 8 <= cell.count; i += 8) {
+      if (cell.entries[i].distance * unit - reach > R) return;
+      for (unsigned m = detail::cellScanBlockAvx2(cell.entries + i, bounds); m != 0; m &= m - 1)
+        if (!visit(cell.entries[i + static_cast<std::uint32_t>(__builtin_ctz(m))])) return;
+      if (end != boundsEnd) {  // a contact shortened the piece: tighter bounds for the rest
+        boundsEnd = end;
+        bounds = detail::cellScanBounds(r0, r1, -along * n0, -along * n1, unit, R + slack, reach);
+      }
+    }
   }
+#endif
+  for (; i < cell.count; ++i)
+    if (!visit(cell.entries[i])) return;
 }
 
 namespace {

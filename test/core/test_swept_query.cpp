@@ -18,6 +18,8 @@
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/core/swept_query.h"
+#include "simd/cell_scan_avx2.h"
+#include "simd/dispatch.h"
 #include "test_helpers.h"
 
 namespace {
@@ -282,6 +284,115 @@ TEST(SweptSphereQuery, SameAsBruteForceOnRandomMeshes) {
     }
   }
 }
+
+// A finely tessellated surface z = f(x, y) over [-1, 1]^2, n x n squares, turned by rotation and moved by shift.
+TriangleMesh heightField(int n, double (*f)(double, double), const Eigen::Matrix3d& rotation, const Vec3& shift) {
+  std::vector<Vec3> vertices;
+  std::vector<Triangle> triangles;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) {
+      const double x = -1.0 + 2.0 * i / n, y = -1.0 + 2.0 * j / n;
+      vertices.push_back(shift + rotation * Vec3(x, y, f(x, y)));
+    }
+  const auto at = [n](int i, int j) { return static_cast<std::uint32_t>(j * (n + 1) + i); };
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      triangles.push_back({at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+      triangles.push_back({at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+    }
+  return makeMesh(std::move(vertices), std::move(triangles), "height field");
+}
+
+// A proxy's sweeps: the sphere resting on a finely tessellated surface (its centre at r, or a hair off, from a
+// surface point along the face normal) and moving along it, slightly into it or out of it. Every coplanar or
+// nearly coplanar neighbour is then within a hair of r over the sweep: the grazing cases the query's plane bound
+// decides, on flat, concave and convex surfaces, near the origin and far from it.
+TEST(SweptSphereQuery, SameAsBruteForceOnTheContactShell) {
+  double (*const shapes[])(double, double) = {
+      [](double, double) { return 0.0; },                         // flat
+      [](double x, double y) { return 0.3 * (x * x + y * y); },   // bowl (concave from above)
+      [](double x, double y) { return -0.3 * (x * x + y * y); },  // dome
+      [](double x, double) { return 0.5 * std::abs(x); },         // V-groove
+  };
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int s = 0; s < 4; ++s)
+    for (const Vec3& shift : {Vec3(0, 0, 0), Vec3(3e3, -1e3, 2e2)}) {
+      const Eigen::Matrix3d rotation = Eigen::AngleAxisd(0.3 + s, randomUnit(rng)).toRotationMatrix();
+      auto mesh = std::make_shared<const TriangleMesh>(heightField(80, shapes[s], rotation, shift));
+      auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
+      const double r = 0.08;  // triangles of 0.025: 3 to 4 across the radius, tens under the ball
+      auto detector = std::make_shared<const ClodDetector>(mesh, set, FastLevel::Grid, r);
+      const SweptSphereQuery withGrid(mesh, detector), treeOnly(mesh);
+      std::vector<Sweep> sweeps;
+      for (int i = 0; i < 1500; ++i) {
+        const std::size_t t = static_cast<std::size_t>(u(rng) * 0.999 * static_cast<double>(mesh->size()));
+        const double w0 = u(rng), w1 = u(rng) * (1.0 - w0);
+        const Vec3 q = mesh->toModel(mesh->vertex(t, 0) + w0 * (mesh->vertex(t, 1) - mesh->vertex(t, 0)) +
+                                     w1 * (mesh->vertex(t, 2) - mesh->vertex(t, 0)));
+        Vec3 n = rotation * Vec3::UnitZ();
+        n = mesh->normals[t].dot(n) > 0.0 ? Vec3(mesh->normals[t]) : Vec3(-mesh->normals[t]);
+        const double hair[] = {0.0, 1e-12, -1e-12, 1e-9, 1e-6};
+        const Vec3 a = q + n * r * (1.0 + hair[i % 5]);
+        Vec3 tangent = randomUnit(rng);
+        tangent = (tangent - tangent.dot(n) * n).normalized();
+        const double normalPart[] = {0.0, -1e-3, 1e-3, -0.2};
+        const double length = r * std::pow(10.0, -3.0 + 3.5 * u(rng));  // 0.001 r to 3 r
+        sweeps.push_back({a, a + length * (tangent + normalPart[(i / 5) % 4] * n)});
+      }
+      const std::string label = "shape " + std::to_string(s) + (shift.isZero() ? "" : " far");
+      expectSameAsBruteForce(*mesh, withGrid, sweeps, r, label + " grid");
+      expectSameAsBruteForce(*mesh, treeOnly, sweeps, r, label + " tree");
+      // The grid's cell scan without its AVX2 filter (the form a CPU without AVX2 runs).
+      detail::usePacketAvx2(false);
+      expectSameAsBruteForce(*mesh, withGrid, sweeps, r, label + " grid, no AVX2");
+      detail::usePacketAvx2(true);
+    }
+}
+
+#if defined(CLOD_PACKET_AVX2)
+// The AVX2 filter of a cell scan against the double test it stands in front of (SweptSphereQuery::sweepCell):
+// random entries and piece ends, the threshold set near the entries' bounds so that many sit a hair either side.
+// It may keep more; it must never drop an entry the double test keeps.
+TEST(CellScanAvx2, KeepsEveryEntryTheDoubleTestKeeps) {
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::uniform_int_distribution<int> byte(0, 255), signedByte(-127, 127);
+  std::size_t kept = 0, dropped = 0, extra = 0;
+  for (int round = 0; round < 20000; ++round) {
+    const double h = std::pow(10.0, -4.0 + 4.0 * (0.5 + 0.5 * u(rng)));  // cells from 0.1 mm to 1 m
+    const double unit = 1.5 * h / 255.0, along = 1.7320508075688772 / 254.0, slack = 0.01 * h;
+    const Vec3 r0 = Vec3(u(rng), u(rng), u(rng)) * h, r1 = r0 + Vec3(u(rng), u(rng), u(rng)) * h * 0.5;
+    const double n0 = r0.norm(), n1 = r1.norm();
+    CellGrid::Entry e[8];
+    double bound[8];
+    for (int i = 0; i < 8; ++i) {
+      e[i].triangle = static_cast<std::uint32_t>(i);
+      e[i].distance = static_cast<std::uint8_t>(byte(rng));
+      for (int k = 0; k < 3; ++k) e[i].direction[k] = static_cast<std::int8_t>(signedByte(rng));
+      const double dc = e[i].distance * unit;
+      const double u0 = (r0.x() * e[i].direction[0] + r0.y() * e[i].direction[1] + r0.z() * e[i].direction[2]) / 127.0;
+      const double u1 = (r1.x() * e[i].direction[0] + r1.y() * e[i].direction[1] + r1.z() * e[i].direction[2]) / 127.0;
+      bound[i] = std::min(u0 - along * n0, u1 - along * n1) + dc - slack;
+    }
+    // R at one entry's bound, nudged by a few ulps either way: the double test's edge.
+    const double R = bound[round % 8] * (1.0 + 1e-15 * (round % 5 - 2));
+    const detail::CellScanBounds b =
+        detail::cellScanBounds(r0, r1, -along * n0, -along * n1, unit, R + slack, std::max(n0, n1) + slack);
+    const unsigned mask = detail::cellScanBlockAvx2(e, b);
+    for (int i = 0; i < 8; ++i) {
+      const bool keep = !(bound[i] > R), got = (mask >> i) & 1u;
+      kept += keep;
+      dropped += keep && !got;
+      extra += !keep && got;
+    }
+  }
+  EXPECT_EQ(dropped, 0u);
+  EXPECT_GT(kept, 10000u);
+  EXPECT_LT(extra, kept / 10) << "a filter that keeps everything passes the first check and helps nobody";
+}
+#endif
 
 TEST(SweptSphereQuery, AllocatesNothing) {
   auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("elephant.off"));

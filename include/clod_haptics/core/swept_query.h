@@ -111,7 +111,7 @@ class SweptSphereQuery {
   std::shared_ptr<const TriangleMesh> mesh_;
   std::shared_ptr<const ClodDetector> detector_;
   const CellGrid* grid_ = nullptr;           // the detector's grid, null when it has none
-  std::vector<double> records_;              // per triangle: its ball (centre, radius), then its corners (local frame)
+  std::vector<double> records_;  // per triangle: ball (centre, radius), unit normal, thickness, corners (local frame)
   std::shared_ptr<const MeshBoxTree> tree_;  // box tree over the triangles (local frame), the mesh's when it fits
 };
 

@@ -39,7 +39,10 @@ const PacketKernels& packetKernels();
 /** \brief Whether packetKernels() gives the AVX2 kernels. */
 bool packetAvx2();
 
-/** \brief Turns the AVX2 kernels off (or back on where the CPU has them), so tests cover both forms. */
+/**
+ * \brief Turns the AVX2 kernels off (or back on where the CPU has them), so tests cover both forms: the packet
+ * walk's and the swept query's cell scan (cell_scan_avx2.h), which asks packetAvx2() too.
+ */
 void usePacketAvx2(bool on);
 
 }  // namespace detail
