@@ -258,7 +258,7 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   }
   // The grid last: its construction peak then meets only the trees kept, not their build's temporaries.
   if (fastLevel_ == FastLevel::Grid) {
-    const double radius = gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * bounds.diagonal().norm();
+    const double radius = effectiveGridRadius(m, gridRadius);
     if (radius > 0.0) {
       grid_ = gridSource ? gridSource(radius) : CellGrid(m, s, radius);
       if (grid_.radius() != radius)
@@ -266,6 +266,10 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
                                ", expected " + std::to_string(radius));
     }
   }
+}
+
+double ClodDetector::effectiveGridRadius(const TriangleMesh& mesh, double gridRadius) {
+  return gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * mesh.bounds().diagonal().norm();
 }
 
 namespace {

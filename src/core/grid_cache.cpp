@@ -245,13 +245,24 @@ std::string CellGridCache::pathFor(const GridCacheKey& key) const {
          std::to_string(kGridCacheFormatVersion) + ".clodgrid";
 }
 
+namespace {
+GridCacheKey normalised(GridCacheKey key) {
+  if (key.distance == 0.0) key.distance = 0.0;  // -0 and +0 are the same level and the same file
+  return key;
+}
+}  // namespace
+
+bool CellGridCache::has(const GridCacheKey& key) const {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(pathFor(normalised(key)), ec);
+}
+
 CellGrid CellGridCache::getOrBuild(const TriangleMesh& mesh, const GridCacheKey& key,
                                    const std::function<CellGrid()>& build, CacheOutcome* outcome) {
   requireNonNegative(key.distance, "clustering distance");
   if (!(key.radius > 0.0) || !std::isfinite(key.radius))
     throw InvalidParameter("cell grid radius must be finite and > 0, got " + std::to_string(key.radius));
-  GridCacheKey k = key;
-  if (k.distance == 0.0) k.distance = 0.0;  // -0 and +0 are the same level and the same file
+  const GridCacheKey k = normalised(key);
   const auto start = std::chrono::steady_clock::now();
   CacheOutcome local;
   CacheOutcome& out = outcome ? *outcome : local;

@@ -67,7 +67,7 @@ std::uint64_t SceneAssets::hashLocked(const std::shared_ptr<const TriangleMesh>&
 }
 
 std::shared_ptr<const ClodSphereSet> SceneAssets::spheresLocked(const std::shared_ptr<const TriangleMesh>& mesh,
-                                                                 double distance, LevelInfo& out) {
+                                                                double distance, LevelInfo& out) {
   const LevelKey key{mesh.get(), detail::bitsOf(distance)};
   auto knownSet = sets_.find(key);
   if (knownSet != sets_.end() && knownSet->second.first.lock() == mesh) {
@@ -79,7 +79,8 @@ std::shared_ptr<const ClodSphereSet> SceneAssets::spheresLocked(const std::share
   dropUnusedLevels(mesh.get(), key.second);
   std::shared_ptr<const ClodSphereSet> set;
   if (cache_) {
-    set = cache_->getOrBuild(*mesh, h, distance, [&] { return fetchOrBuild(mesh, h, distance, out); }, &out.cache);
+    set = cache_->getOrBuild(
+        *mesh, h, distance, [&] { return fetchOrBuild(mesh, h, distance, out); }, &out.cache);
   } else {
     const auto start = std::chrono::steady_clock::now();
     set = std::make_shared<const ClodSphereSet>(fetchOrBuild(mesh, h, distance, out));
@@ -122,8 +123,8 @@ void SceneAssets::dropUnusedLevels(const TriangleMesh* mesh, std::uint64_t keepD
     it = drop ? levels_.erase(it) : std::next(it);
   }
   for (auto it = sets_.begin(); it != sets_.end();) {
-    const bool drop = it->first.first == mesh && it->first.second != keepDistanceBits &&
-                      it->second.second.use_count() == 1;
+    const bool drop =
+        it->first.first == mesh && it->first.second != keepDistanceBits && it->second.second.use_count() == 1;
     it = drop ? sets_.erase(it) : std::next(it);
   }
 }
@@ -144,6 +145,26 @@ std::shared_ptr<const ClodSphereSet> SceneAssets::spheres(const std::shared_ptr<
   out = LevelInfo();
   std::lock_guard<std::mutex> lock(mutex_);
   return spheresLocked(mesh, distance, out);
+}
+
+GridCacheKey SceneAssets::gridKeyLocked(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
+                                        const ClodSphereSet& set, double radius) {
+  GridCacheKey key;
+  key.meshHash = hashLocked(mesh);
+  key.distance = distance;
+  key.setHash = sphereSetHash(set);
+  key.radius = radius;
+  return key;
+}
+
+bool SceneAssets::gridCached(const std::shared_ptr<const TriangleMesh>& mesh, double distance) {
+  distance = normalisedDistance(mesh, distance, "SceneAssets::gridCached");
+  LevelInfo out;
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!gridCache_ || fastLevel_ != FastLevel::Grid) return false;
+  const auto set = spheresLocked(mesh, distance, out);
+  const double radius = ClodDetector::effectiveGridRadius(*mesh, gridRadius_);
+  return radius > 0.0 && gridCache_->has(gridKeyLocked(mesh, distance, *set, radius));
 }
 
 std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
@@ -170,12 +191,8 @@ std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<con
   ClodDetector::GridSource gridSource;
   if (gridCache_ && fastLevel == FastLevel::Grid) {
     gridSource = [&](double radius) {
-      GridCacheKey gridKey;
-      gridKey.meshHash = hashLocked(mesh);
-      gridKey.distance = distance;
-      gridKey.setHash = sphereSetHash(*set);
-      gridKey.radius = radius;
-      return gridCache_->getOrBuild(*mesh, gridKey, [&] { return CellGrid(*mesh, *set, radius); }, &out.grid);
+      return gridCache_->getOrBuild(
+          *mesh, gridKeyLocked(mesh, distance, *set, radius), [&] { return CellGrid(*mesh, *set, radius); }, &out.grid);
     };
   }
   auto detector = std::make_shared<const ClodDetector>(mesh, set, fastLevel, gridRadius, gridSource);

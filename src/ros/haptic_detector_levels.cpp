@@ -186,7 +186,10 @@ bool HapticDetector::prepareNextLevel(std::vector<LevelPlan>& plan) {
                p.source.c_str(), p.setMs);
       return true;
     }
-    const bool quick = p.step == kSet && p.quick && params_.quickStart && params_.fastLevel != FastLevel::Hierarchy;
+    // The quick hierarchy is for grids that must be built: a grid the disk cache holds is about as quick to read,
+    // and it comes next anyway when grids are eager or the pointer is near.
+    const bool quick = p.step == kSet && p.quick && params_.quickStart && params_.fastLevel != FastLevel::Hierarchy &&
+                       !((!params_.gridOnDemand || wanted_[i].load()) && assets_->gridCached(mesh, p.distance));
     const FastLevel fast = quick ? FastLevel::Hierarchy : params_.fastLevel;
     auto level = assets_->level(mesh, p.distance, fast, &info);
     p.step = quick ? kQuick : kFinal;

@@ -155,6 +155,8 @@ TEST(GridCache, SceneAssetsRestartReadsTheGridFromTheCache) {
   {
     SceneAssets assets(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Grid, radius);
     first = assets.level(torus(), d, &info);
+    EXPECT_TRUE(assets.gridCached(torus(), d));
+    EXPECT_FALSE(assets.gridCached(torus(), 0.005)) << "no grid for another distance yet";
     EXPECT_EQ(info.cache.source, CacheSource::Built);
     EXPECT_EQ(info.grid.source, CacheSource::Built);
     EXPECT_FALSE(info.gridFromCache());
@@ -171,6 +173,7 @@ TEST(GridCache, SceneAssetsRestartReadsTheGridFromTheCache) {
   }
   // A restart: fresh assets over the same directory read both the set and the grid.
   SceneAssets restarted(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Grid, radius);
+  EXPECT_TRUE(restarted.gridCached(torus(), d)) << "what a node asks before it skips the quick hierarchy";
   const auto second = restarted.level(torus(), d, &info);
   EXPECT_EQ(info.cache.source, CacheSource::Hit);
   EXPECT_EQ(info.grid.source, CacheSource::Hit) << info.grid.problem;
@@ -185,7 +188,9 @@ TEST(GridCache, SceneAssetsRestartReadsTheGridFromTheCache) {
 
   // Another radius is another file, built then read.
   restarted.setGridRadius(0.006);
+  EXPECT_FALSE(restarted.gridCached(torus(), d)) << "no grid of the new radius yet";
   restarted.level(torus(), d, &info);
+  EXPECT_TRUE(restarted.gridCached(torus(), d));
   EXPECT_EQ(info.grid.source, CacheSource::Built);
   SceneAssets third(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Grid, 0.006);
   third.level(torus(), d, &info);
@@ -193,9 +198,13 @@ TEST(GridCache, SceneAssetsRestartReadsTheGridFromTheCache) {
 
   // Without a disk cache, no grid file.
   SceneAssets noCache(nullptr, FastLevel::Grid, radius);
+  EXPECT_FALSE(noCache.gridCached(torus(), d));
   noCache.level(torus(), d, &info);
   EXPECT_TRUE(info.grid.path.empty());
   EXPECT_FALSE(info.gridFromCache());
+  // Nor for a hierarchy-level store, whose detectors have no grid.
+  EXPECT_FALSE(SceneAssets(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Hierarchy, radius)
+                   .gridCached(torus(), d));
 }
 
 // ---- Corrupt and stale files ----

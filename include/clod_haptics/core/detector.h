@@ -67,6 +67,8 @@ class ClodDetector {
    * InvalidParameter when gridSource returns a grid of another radius; whatever gridSource throws.
    */
   using GridSource = std::function<CellGrid(double radius)>;
+  /** \brief The radius of the grid a Grid detector of mesh builds for gridRadius (0: 1% of the diagonal). */
+  static double effectiveGridRadius(const TriangleMesh& mesh, double gridRadius);
   ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
                FastLevel fastLevel = FastLevel::Grid, double gridRadius = 0.0, const GridSource& gridSource = {});
 

@@ -82,6 +82,11 @@ class CellGridCache : public DiskCache {
   CellGrid getOrBuild(const TriangleMesh& mesh, const GridCacheKey& key, const std::function<CellGrid()>& build,
                       CacheOutcome* outcome = nullptr);
 
+  /**
+   * \brief Whether a file for key exists (getOrBuild would read it; it is checked then, and rebuilt if bad).
+   */
+  bool has(const GridCacheKey& key) const;
+
   /** \brief Grids built because no file existed. */
   std::uint64_t misses() const { return misses_.load(); }
 

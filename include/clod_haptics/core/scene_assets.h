@@ -106,6 +106,15 @@ class SceneAssets {
                                             FastLevel fastLevel, LevelInfo* info = nullptr);
 
   /**
+   * \brief Whether level(mesh, d) would read its grid from the disk cache rather than build it: the Grid fast
+   * level, a disk cache, and a grid file for the current grid radius (the file is checked when read). A node
+   * that answers with a quick hierarchy detector first can skip it then: the grid is about as quick to read.
+   * Reads or builds the sphere set of (mesh, d) as spheres() does (the grid's key names it).
+   * \throws as spheres().
+   */
+  bool gridCached(const std::shared_ptr<const TriangleMesh>& mesh, double distance);
+
+  /**
    * \brief Only the sphere set of (mesh, d), from memory, the disk cache or a build: what a restart
    * reads back cheaply. A detector (level()) built later shares it.
    * \throws as level().
@@ -140,6 +149,8 @@ class SceneAssets {
   std::uint64_t hashLocked(const std::shared_ptr<const TriangleMesh>& mesh);
   std::shared_ptr<const ClodSphereSet> spheresLocked(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
                                                      LevelInfo& out);
+  GridCacheKey gridKeyLocked(const std::shared_ptr<const TriangleMesh>& mesh, double distance,
+                             const ClodSphereSet& set, double radius);
   ClodSphereSet fetchOrBuild(const std::shared_ptr<const TriangleMesh>& mesh, std::uint64_t hash, double distance,
                              LevelInfo& out);
   void dropUnusedLevels(const TriangleMesh* mesh, std::uint64_t keepDistanceBits);
