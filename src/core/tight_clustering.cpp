@@ -421,10 +421,28 @@ SurfaceDistance::SurfaceDistance(const TriangleMesh& mesh) : mesh_(mesh) {
   std::sort(keyed.begin(), keyed.end());
   order_.resize(n);
   corners_.resize(9 * n);
+  planes_.resize(5 * n);
+  // The bound's own rounding: n . p for coordinates up to the box's magnitude.
+  const double rounding = 1e-14 * std::max(box.min().cwiseAbs().maxCoeff(), box.max().cwiseAbs().maxCoeff());
   for (std::size_t t = 0; t < n; ++t) {
     order_[t] = keyed[t].second;
     for (int v = 0; v < 3; ++v)
       for (int k = 0; k < 3; ++k) corners_[9 * t + 3 * v + k] = mesh.vertex(order_[t], v)[k];
+    // The unit normal, the offset and how far the corners lie off that plane (their rounding): |n . p - offset|
+    // less that is a lower bound of the distance from p to the triangle (zero normal for a degenerate one).
+    const Vec3 &a = mesh.vertex(order_[t], 0), &b = mesh.vertex(order_[t], 1), &c = mesh.vertex(order_[t], 2);
+    Vec3 normal = (b - a).cross(c - a);
+    const double length = normal.norm();
+    normal = length > 0.0 && std::isfinite(length) ? Vec3(normal / length) : Vec3::Zero();
+    const double offset = normal.dot(a);
+    double off = 0.0;
+    for (const Vec3* v : {&a, &b, &c}) off = std::max(off, std::abs(normal.dot(*v) - offset));
+    double* plane = planes_.data() + 5 * t;
+    plane[0] = normal.x();
+    plane[1] = normal.y();
+    plane[2] = normal.z();
+    plane[3] = offset;
+    plane[4] = off * (1.0 + 1e-9) + rounding;
   }
   const std::size_t leaves = (n + kLeaf - 1) / kLeaf;
   leaves_ = 1;
@@ -453,17 +471,26 @@ double SurfaceDistance::signedDistance(const Vec3& p, double bound) const {
   double best = std::isfinite(bound) ? bound * bound * (1.0 + 1e-9) + 1e-300 : std::numeric_limits<double>::infinity();
   std::uint32_t bestTriangle = kNone;
   Vec3 bestPoint = p;
-  std::size_t stack[64];  // the tree is complete: depth log2(leaves) < 64
+  struct Item {
+    std::size_t index;
+    double distance2;  // from p to the node's box, computed when it was pushed
+  };
+  Item stack[64];  // the tree is complete: depth log2(leaves) < 64
   int top = 0;
-  stack[top++] = 0;
+  stack[top++] = {0, boxDistance2(p, boxes_[0].lo, boxes_[0].hi)};
   const std::size_t n = order_.size();
   while (top > 0) {
-    const std::size_t index = stack[--top];
-    const Box& box = boxes_[index];
-    if (boxDistance2(p, box.lo, box.hi) >= best) continue;
+    const Item item = stack[--top];
+    const std::size_t index = item.index;
+    if (item.distance2 >= best) continue;
     if (index >= leaves_ - 1) {
       const std::size_t leaf = index - (leaves_ - 1);
       for (std::size_t i = leaf * kLeaf; i < std::min(n, (leaf + 1) * kLeaf); ++i) {
+        // The plane first: a triangle whose plane is farther than the best so far cannot win (the margin is d2's
+        // rounding, so the answer stays the one of testing every triangle).
+        const double* pl = planes_.data() + 5 * i;
+        const double across = std::abs(pl[0] * p.x() + pl[1] * p.y() + pl[2] * p.z() - pl[3]) - pl[4];
+        if (across > 0.0 && across * across > best * (1.0 + 1e-9)) continue;
         const double* c = corners_.data() + 9 * i;
         const Vec3 q =
             closestPointOnTriangle(p, Vec3(c[0], c[1], c[2]), Vec3(c[3], c[4], c[5]), Vec3(c[6], c[7], c[8]));
@@ -480,11 +507,11 @@ double SurfaceDistance::signedDistance(const Vec3& p, double bound) const {
     const double dl = boxDistance2(p, boxes_[left].lo, boxes_[left].hi);
     const double dr = boxDistance2(p, boxes_[right].lo, boxes_[right].hi);
     if (dl <= dr) {  // nearer child on top
-      stack[top++] = right;
-      stack[top++] = left;
+      if (dr < best) stack[top++] = {right, dr};
+      if (dl < best) stack[top++] = {left, dl};
     } else {
-      stack[top++] = left;
-      stack[top++] = right;
+      if (dl < best) stack[top++] = {left, dl};
+      if (dr < best) stack[top++] = {right, dr};
     }
   }
   if (bestTriangle == kNone) return bound;

@@ -7,8 +7,8 @@
 #include <cmath>
 #include <limits>
 #include <memory>
-#include <string>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "clod_haptics/core/brute_force.h"
@@ -154,7 +154,8 @@ std::shared_ptr<const TriangleMesh> boxMesh(const Vec3& h, int n, const std::str
 }
 
 // A closed cylinder along x from -half to half of radius a, `segments` around, `rings` along (1: long triangles).
-std::shared_ptr<const TriangleMesh> cylinderMesh(double a, double half, int segments, int rings, const std::string& name) {
+std::shared_ptr<const TriangleMesh> cylinderMesh(double a, double half, int segments, int rings,
+                                                 const std::string& name) {
   std::vector<Vec3> v;
   std::vector<Triangle> t;
   for (int k = 0; k <= rings; ++k)
@@ -190,7 +191,8 @@ std::vector<std::shared_ptr<const TriangleMesh>> thinMeshes() {
 std::size_t uncoveredSamples(const TriangleMesh& mesh, const ClodSphereSet& set) {
   std::vector<std::vector<std::uint32_t>> listing(mesh.size());
   for (std::size_t i = 0; i < set.size(); ++i)
-    for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t) listing[*t].push_back(static_cast<std::uint32_t>(i));
+    for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t)
+      listing[*t].push_back(static_cast<std::uint32_t>(i));
   constexpr int kSteps = 8;
   std::size_t misses = 0;
   for (std::size_t t = 0; t < mesh.size(); ++t)
@@ -371,25 +373,29 @@ TEST(TightClustering, BadInputThrowsInvalidParameter) {
 }
 
 TEST(SurfaceDistance, MatchesBruteForce) {
-  const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
-  const SurfaceDistance surface(*mesh);
-  std::vector<Vec3> probes = uniformProbes(*mesh, 2000, 0.2, 31);
-  std::size_t checked = 0;
-  for (const Vec3& p : probes) {
-    bool ambiguous = false;
-    const double ref = referenceSignedDistance(*mesh, p, ambiguous);
-    const double got = surface.signedDistance(p);
-    EXPECT_NEAR(std::abs(got), std::abs(ref), 1e-12);
-    if (!ambiguous) {
-      EXPECT_EQ(got > 0.0, ref > 0.0) << p.transpose();
-      ++checked;
+  for (const char* name : {"head.off", "elephant.off"}) {
+    const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
+    const SurfaceDistance surface(*mesh);
+    // Anywhere around the model, and close to its surface (where neighbouring triangles' planes pass near the probe).
+    std::vector<Vec3> probes = uniformProbes(*mesh, 2000, 0.2, 31);
+    for (const Vec3& p : nearSurfaceProbes(*mesh, 2000, 0.01, 32)) probes.push_back(p);
+    std::size_t checked = 0;
+    for (const Vec3& p : probes) {
+      bool ambiguous = false;
+      const double ref = referenceSignedDistance(*mesh, p, ambiguous);
+      const double got = surface.signedDistance(p);
+      EXPECT_NEAR(std::abs(got), std::abs(ref), 1e-12);
+      if (!ambiguous) {
+        EXPECT_EQ(got > 0.0, ref > 0.0) << p.transpose();
+        ++checked;
+      }
+      // Bounded: the same value when the surface is within the bound, else +bound.
+      const double bound = 0.5 * std::abs(ref);
+      EXPECT_EQ(surface.signedDistance(p, bound), bound);
+      EXPECT_NEAR(std::abs(surface.signedDistance(p, 2.0 * std::abs(ref) + 1e-9)), std::abs(ref), 1e-12);
     }
-    // Bounded: the same value when the surface is within the bound, else +bound.
-    const double bound = 0.5 * std::abs(ref);
-    EXPECT_EQ(surface.signedDistance(p, bound), bound);
-    EXPECT_NEAR(std::abs(surface.signedDistance(p, 2.0 * std::abs(ref) + 1e-9)), std::abs(ref), 1e-12);
+    EXPECT_GT(checked, probes.size() / 2);
   }
-  EXPECT_GT(checked, probes.size() / 2);
 }
 
 TEST(SurfaceDistance, InsideAClosedCubeIsPositive) {
