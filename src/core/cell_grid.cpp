@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
+#include <vector>
 
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
@@ -158,6 +160,66 @@ struct ByCellThenDistance {
   }
 };
 
+/**
+ * Sorts candidates in ByCellThenDistance order: by cell with a radix sort (the keys cut down to the bits their
+ * x, y and z ranges use, which keeps their order; 11 bits a pass, through scratch), then each cell's run (tens of
+ * candidates) by distance and triangle, by insertion. A slice's candidates are millions: this is linear in them,
+ * where a comparison sort took a fifth of the grid's build.
+ */
+void sortCandidates(ReallocArray<Candidate>& c, ReallocArray<Candidate>& scratch) {
+  const std::size_t n = c.size();
+  if (n < 2) return;
+  constexpr std::uint64_t kAxis = (1ull << CellGrid::kBits) - 1;
+  std::uint64_t lo[3] = {kAxis, kAxis, kAxis}, hi[3] = {0, 0, 0};
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint64_t v = (c[i].key >> (k * CellGrid::kBits)) & kAxis;
+      lo[k] = std::min(lo[k], v);
+      hi[k] = std::max(hi[k], v);
+    }
+  int shift[3], total = 0;
+  for (int k = 0; k < 3; ++k) {
+    shift[k] = total;
+    total += hi[k] > lo[k] ? 64 - __builtin_clzll(hi[k] - lo[k]) : 0;
+  }
+  auto compact = [&](std::uint64_t key) {
+    std::uint64_t out = 0;
+    for (int k = 0; k < 3; ++k) out |= (((key >> (k * CellGrid::kBits)) & kAxis) - lo[k]) << shift[k];
+    return out;
+  };
+  constexpr int kDigit = 11;
+  constexpr std::size_t kBuckets = std::size_t{1} << kDigit;
+  scratch.resize(n);
+  Candidate* from = c.data();
+  Candidate* to = scratch.data();
+  std::vector<std::size_t> count(kBuckets);
+  for (int pass = 0; pass * kDigit < total; ++pass) {
+    std::fill(count.begin(), count.end(), 0);
+    const int at = pass * kDigit;
+    for (std::size_t i = 0; i < n; ++i) ++count[(compact(from[i].key) >> at) & (kBuckets - 1)];
+    std::size_t sum = 0;
+    for (std::size_t& b : count) sum += std::exchange(b, sum);
+    for (std::size_t i = 0; i < n; ++i) to[count[(compact(from[i].key) >> at) & (kBuckets - 1)]++] = from[i];
+    std::swap(from, to);
+  }
+  if (from != c.data()) std::copy(from, from + n, c.data());
+  const ByCellThenDistance less;
+  for (std::size_t begin = 0, end = 0; begin < n; begin = end) {
+    end = begin + 1;
+    while (end < n && c[end].key == c[begin].key) ++end;
+    if (end - begin > 32) {  // a crowded cell (triangles far smaller than it)
+      std::sort(c.data() + begin, c.data() + end, less);
+      continue;
+    }
+    for (std::size_t i = begin + 1; i < end; ++i) {
+      const Candidate v = c[i];
+      std::size_t j = i;
+      for (; j > begin && less(v, c[j - 1]); --j) c[j] = c[j - 1];
+      c[j] = v;
+    }
+  }
+}
+
 std::uint64_t cellKey(std::int64_t x, std::int64_t y, std::int64_t z) {
   return static_cast<std::uint64_t>(x) | static_cast<std::uint64_t>(y) << CellGrid::kBits |
          static_cast<std::uint64_t>(z) << (2 * CellGrid::kBits);
@@ -309,6 +371,7 @@ SliceTriangles trianglesPerSlice(const TriangleMesh& mesh, const Layout& g, cons
 /** A slice's candidates, collected by two threads into two lists, each sorted. */
 struct SliceCandidates {
   ReallocArray<Candidate> first, second;
+  ReallocArray<Candidate> scratch[2];  // the sorts' buffers, one per thread
 
   void collect(const CandidateCollector& collector, const std::uint32_t* list, std::size_t count, std::int64_t zBegin,
                std::int64_t zEnd) {
@@ -318,7 +381,7 @@ struct SliceCandidates {
     detail::runParallel(2, [&](unsigned part) {
       auto& out = part ? second : first;
       collector.collect(part ? list + half : list, part ? list + count : list + half, zBegin, zEnd, out);
-      std::sort(out.begin(), out.end(), ByCellThenDistance());
+      sortCandidates(out, scratch[part]);
     });
   }
   /** Visits the candidates of both lists in merged order. */
