@@ -245,6 +245,12 @@ class CandidateCollector {
     const Vec3 &a = mesh_.vertex(t, 0), &b = mesh_.vertex(t, 1), &c = mesh_.vertex(t, 2);
     const Vec3& n = mesh_.normals[t];
     const bool planar = !n.isZero(0.0);
+    // The triangle's ball (centroid, farthest corner): a centre farther than reach from it is farther from the
+    // triangle, which drops the corners of the triangle's box before the closest-point computation.
+    const Vec3 mid = (a + b + c) * (1.0 / 3.0);
+    const double ball =
+        std::sqrt(std::max({(a - mid).squaredNorm(), (b - mid).squaredNorm(), (c - mid).squaredNorm()})) + planeLimit_;
+    const double ball2 = ball * ball;
     std::int64_t l[3], u[3];
     spannedCells(mesh_, g_, t, l, u);
     for (int k = 0; k < 3; ++k) {
@@ -261,6 +267,7 @@ class CandidateCollector {
           // The distance to the plane is a lower bound of the distance to the triangle: most cells of
           // the box are rejected by it before the closest-point computation.
           if (planar && std::abs(n.dot(centre - a)) > planeLimit_) continue;
+          if ((centre - mid).squaredNorm() > ball2) continue;
           const Vec3 toCentre = centre - closestPointOnTriangle(centre, a, b, c);
           const double d = toCentre.norm();
           if (d <= g_.reach) out.push_back(candidate(cellKey(x, y, z), static_cast<std::uint32_t>(t), toCentre, d));
