@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <utility>
 #include <vector>
@@ -204,11 +205,20 @@ void sortCandidates(ReallocArray<Candidate>& c, ReallocArray<Candidate>& scratch
   }
   if (from != c.data()) std::copy(from, from + n, c.data());
   const ByCellThenDistance less;
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order;  // a crowded run's (distance, triangle) and position
   for (std::size_t begin = 0, end = 0; begin < n; begin = end) {
     end = begin + 1;
     while (end < n && c[end].key == c[begin].key) ++end;
-    if (end - begin > 32) {  // a crowded cell (triangles far smaller than it)
-      std::sort(c.data() + begin, c.data() + end, less);
+    if (end - begin > 32) {  // a crowded cell (triangles far smaller than it): sort integer keys, then move once
+      order.clear();
+      for (std::size_t i = begin; i < end; ++i) {
+        std::uint32_t bits;  // a distance is >= 0: its bits order as the floats do
+        std::memcpy(&bits, &c[i].distance, sizeof bits);
+        order.emplace_back(std::uint64_t{bits} << 32 | c[i].triangle, static_cast<std::uint32_t>(i - begin));
+      }
+      std::sort(order.begin(), order.end());
+      for (std::size_t i = 0; i < order.size(); ++i) scratch[i] = c[begin + order[i].second];
+      std::copy(scratch.data(), scratch.data() + order.size(), c.data() + begin);
       continue;
     }
     for (std::size_t i = begin + 1; i < end; ++i) {
