@@ -113,8 +113,11 @@ Vec3 HapticRenderer::solve(const SweptScene& scene, const Vec3& from, const Vec3
   const double skin = 1e-9 * r + 1e-15 * from.cwiseAbs().maxCoeff();
   Vec3 p = from, goal = target;
   SceneSweptContact hit;
+  // A move shorter than a few skins is the skin itself (the proxy wedged between its planes): staying is as good,
+  // never enters anything, and saves a sweep that would scan the cell for nothing.
+  const double still = 16.0 * skin;
   for (int i = 0; i < kIterations; ++i) {
-    if (goal == p) break;
+    if ((goal - p).squaredNorm() <= still * still) break;
     scene.sweep(p, goal, r, hit, hint_.object, hint_.triangle);
     ++out.sweeps;
     out.trianglesTested += hit.contact.trianglesTested;
