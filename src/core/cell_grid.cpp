@@ -163,9 +163,9 @@ struct ByCellThenDistance {
 
 /**
  * Sorts candidates in ByCellThenDistance order: by cell with a radix sort (the keys cut down to the bits their
- * x, y and z ranges use, which keeps their order; 11 bits a pass, through scratch), then each cell's run (tens of
- * candidates) by distance and triangle, by insertion. A slice's candidates are millions: this is linear in them,
- * where a comparison sort took a fifth of the grid's build.
+ * x, y and z ranges use, which keeps their order; 11 bits a pass, through scratch), then each cell's run by distance
+ * and triangle: by insertion (tens of candidates), or as integer keys beyond 32. A slice's candidates are millions:
+ * this is linear in them, where a comparison sort took a fifth of the grid's build.
  */
 void sortCandidates(ReallocArray<Candidate>& c, ReallocArray<Candidate>& scratch) {
   const std::size_t n = c.size();

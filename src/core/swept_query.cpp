@@ -254,11 +254,9 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
     const Vec3 &v0 = mesh_->vertex(t, 0), &v1 = mesh_->vertex(t, 1), &v2 = mesh_->vertex(t, 2);
     Vec3 c;
     boundingBall(v0, v1, v2, c, rec[3]);
-    // Any unit normal serves (the thickness measures how far the corners are off its plane); none for a
-    // degenerate triangle, whose bound is then the ball's.
-    Vec3 n = (v1 - v0).cross(v2 - v0);
-    const double length = n.norm();
-    n = length > 0.0 && std::isfinite(length) ? Vec3(n / length) : Vec3::Zero();
+    // The mesh's unit face normal (zero for a degenerate triangle, whose bound is then the ball's); the thickness
+    // measures how far the corners lie off its plane, so its rounding is covered too.
+    const Vec3& n = mesh_->normals[t];
     double thick = 0.0;
     for (const Vec3* v : {&v0, &v1, &v2}) thick = std::max(thick, std::abs(n.dot(*v - c)));
     for (int k = 0; k < 3; ++k) {

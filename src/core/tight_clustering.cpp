@@ -428,12 +428,11 @@ SurfaceDistance::SurfaceDistance(const TriangleMesh& mesh) : mesh_(mesh) {
     order_[t] = keyed[t].second;
     for (int v = 0; v < 3; ++v)
       for (int k = 0; k < 3; ++k) corners_[9 * t + 3 * v + k] = mesh.vertex(order_[t], v)[k];
-    // The unit normal, the offset and how far the corners lie off that plane (their rounding): |n . p - offset|
-    // less that is a lower bound of the distance from p to the triangle (zero normal for a degenerate one).
+    // The mesh's unit face normal, the offset and how far the corners lie off that plane (their rounding):
+    // |n . p - offset| less that is a lower bound of the distance from p to the triangle (zero normal for a
+    // degenerate one).
     const Vec3 &a = mesh.vertex(order_[t], 0), &b = mesh.vertex(order_[t], 1), &c = mesh.vertex(order_[t], 2);
-    Vec3 normal = (b - a).cross(c - a);
-    const double length = normal.norm();
-    normal = length > 0.0 && std::isfinite(length) ? Vec3(normal / length) : Vec3::Zero();
+    const Vec3& normal = mesh.normals[order_[t]];
     const double offset = normal.dot(a);
     double off = 0.0;
     for (const Vec3* v : {&a, &b, &c}) off = std::max(off, std::abs(normal.dot(*v) - offset));

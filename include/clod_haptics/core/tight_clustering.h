@@ -78,9 +78,8 @@ class SurfaceDistance {
   std::vector<Box> boxes_;            ///< complete binary tree in heap layout, leaves last
   std::vector<std::uint32_t> order_;  ///< triangles in Morton order, kLeaf per leaf
   std::vector<double> corners_;       ///< their corners in that order, 9 per triangle (a leaf reads one run)
-  std::vector<double>
-      planes_;  ///< their planes in that order, 5 per triangle: unit normal, offset, corners' distance off it
-  std::size_t leaves_ = 0;  ///< leaves in the tree (a power of two)
+  std::vector<double> planes_;        ///< their planes in that order, 5 per triangle (normal, offset, thickness)
+  std::size_t leaves_ = 0;            ///< leaves in the tree (a power of two)
 };
 
 }  // namespace clod_haptics
