@@ -5,9 +5,11 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <stdexcept>
 #include <string>
 
 #include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/triangle_pieces.h"
 #include "parallel.h"
 
 namespace clod_haptics {
@@ -272,19 +274,29 @@ ClodSphereSet ClodBuilder::build(double d) const {
   const TriangleMesh& mesh = *mesh_;
   std::vector<std::uint32_t> labels;
   std::vector<Vec3> chosen;  // centres the strategy chose, if it did
-  const std::uint32_t k = clustering_->clusterMesh(mesh, centres_, wrapped_, d, labels, chosen);
+  ClusterLists lists;        // spheres the strategy fitted itself, if it did
+  const std::uint32_t k = clustering_->clusterMesh(mesh, centres_, wrapped_, d, labels, chosen, &lists);
 
   ClodSphereSet set;
   set.meshName = mesh.name;
   set.scale = mesh.scale;
   set.origin = mesh.origin;
   set.distance = d;
-  SphereFitter fitter(mesh, centres_, wrapped_, labels, k, set);
-  if (k == centres_.size())
-    fitter.fitSingletons(chosen);
-  else
-    fitter.fitClusters(chosen);
-  fitter.fitRadii();
+  if (!lists.offsets.empty()) {
+    if (lists.offsets.size() != std::size_t{k} + 1 || lists.radii.size() != k || chosen.size() != k)
+      throw std::logic_error("ClodBuilder: the clustering's lists do not match its cluster count");
+    set.centres = std::move(chosen);
+    set.radii = std::move(lists.radii);
+    set.offsets = std::move(lists.offsets);
+    set.triangles = std::move(lists.triangles);
+  } else {
+    SphereFitter fitter(mesh, centres_, wrapped_, labels, k, set);
+    if (k == centres_.size())
+      fitter.fitSingletons(chosen);
+    else
+      fitter.fitClusters(chosen);
+    fitter.fitRadii();
+  }
   set.stats = statsOf(set, mesh.size(), centres_.size(), placementStats_);
   set.stats.clusteringMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return set;
@@ -330,31 +342,60 @@ std::string fitProblem(const TriangleMesh& mesh, const ClodSphereSet& set, doubl
   }
   if (set.origin != mesh.origin) return "built for a mesh with another local origin (is it the same mesh and scale?)";
   const double tolerance = relativeTolerance * std::max(mesh.diagonal(), 1e-300);
-  std::vector<char> covered(mesh.size(), 0);
+  auto holds = [&](std::size_t sphere, const Vec3& p) {
+    return (p - set.centres[sphere]).norm() <= set.radii[sphere] * (1.0 + 1e-9) + tolerance;
+  };
+  // Per triangle: listed by no sphere, whole in a sphere listing it, or listed but whole in none (a split triangle,
+  // with the sphere that first listed it).
+  enum : char { kUnlisted, kWhole, kPartial };
+  std::vector<char> state(mesh.size(), kUnlisted);
+  std::vector<std::uint32_t> firstPartial;
   for (std::size_t i = 0; i < n; ++i) {
     if (set.offsets[i] > set.offsets[i + 1]) return "offsets decrease at sphere " + std::to_string(i);
-    const Vec3& c = set.centres[i];
-    const double radius = set.radii[i];
-    if (!c.allFinite() || !std::isfinite(radius) || radius < 0.0)
+    if (!set.centres[i].allFinite() || !std::isfinite(set.radii[i]) || set.radii[i] < 0.0)
       return "sphere " + std::to_string(i) + " is not finite";
-    const double reach = radius * (1.0 + 1e-9) + tolerance;
     for (std::uint32_t k = set.offsets[i]; k < set.offsets[i + 1]; ++k) {
       const std::uint32_t t = set.triangles[k];
       if (t >= mesh.size()) {
         return "sphere " + std::to_string(i) + " lists triangle " + std::to_string(t) + " but the mesh has " +
                std::to_string(mesh.size());
       }
-      for (int v = 0; v < 3; ++v) {
-        if (!((mesh.vertex(t, v) - c).norm() <= reach)) {
-          return "triangle " + std::to_string(t) + " sticks out of sphere " + std::to_string(i) +
-                 " (is it the same mesh and scale?)";
-        }
+      if (state[t] == kWhole) continue;
+      if (holds(i, mesh.vertex(t, 0)) && holds(i, mesh.vertex(t, 1)) && holds(i, mesh.vertex(t, 2))) {
+        state[t] = kWhole;
+      } else if (state[t] == kUnlisted) {
+        state[t] = kPartial;
+        if (firstPartial.empty()) firstPartial.assign(mesh.size(), kNone);
+        firstPartial[t] = static_cast<std::uint32_t>(i);
       }
-      covered[t] = 1;
     }
   }
-  for (std::size_t t = 0; t < covered.size(); ++t) {
-    if (!covered[t]) return "triangle " + std::to_string(t) + " is in no sphere";
+  if (!firstPartial.empty()) {
+    // A triangle whole in none of its spheres is covered when its pieces (triangle_pieces.h) each lie in one.
+    std::vector<std::uint32_t> begin(mesh.size() + 1, 0), listing;
+    for (std::uint32_t t : set.triangles) begin[t + 1] += state[t] == kPartial;
+    for (std::size_t t = 0; t < mesh.size(); ++t) begin[t + 1] += begin[t];
+    listing.resize(begin.back());
+    std::vector<std::uint32_t> next(begin.begin(), begin.end() - 1);
+    for (std::size_t i = 0; i < n; ++i)
+      for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t)
+        if (state[*t] == kPartial) listing[next[*t]++] = static_cast<std::uint32_t>(i);
+    for (std::size_t t = 0; t < mesh.size(); ++t) {
+      if (state[t] != kPartial) continue;
+      const TrianglePiece whole{mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2)};
+      const bool covered = coveredByPieces(whole, kMaxPieceDepth, [&](const TrianglePiece& piece) {
+        for (std::uint32_t j = begin[t]; j < begin[t + 1]; ++j)
+          if (holds(listing[j], piece[0]) && holds(listing[j], piece[1]) && holds(listing[j], piece[2])) return true;
+        return false;
+      });
+      if (!covered) {
+        return "triangle " + std::to_string(t) + " sticks out of sphere " + std::to_string(firstPartial[t]) +
+               " and the other spheres listing it (is it the same mesh and scale?)";
+      }
+    }
+  }
+  for (std::size_t t = 0; t < state.size(); ++t) {
+    if (state[t] == kUnlisted) return "triangle " + std::to_string(t) + " is in no sphere";
   }
   return {};
 }

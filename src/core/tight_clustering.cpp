@@ -13,6 +13,7 @@
 #include "clod_haptics/core/geometry.h"
 #include "clod_haptics/core/morton.h"
 #include "clod_haptics/core/triangle_bvh.h"
+#include "clod_haptics/core/triangle_pieces.h"
 #include "parallel.h"
 
 namespace clod_haptics {
@@ -103,16 +104,18 @@ void requireWrapped(const TriangleMesh& mesh, std::size_t points, const std::vec
     if (t >= mesh.size()) throw InvalidParameter("TightClustering: wrapped triangle out of range");
 }
 
-// The items of clusterMesh are the wrapped triangles (each once, in the order first wrapped), with what
-// the choice of a centre needs of each: its centroid and the depth hint, the mean of its points' distances
-// below it (from the sums of the points with a finite distance).
+// The items of clusterMesh are the wrapped triangles (each once, in the order first wrapped), or their
+// pieces (splitLongItems), with what the choice of a centre needs of each: its corners, its centroid and the
+// depth hint, the mean of its triangle's points' distances below the triangle (from the sums of the points
+// with a finite distance).
 struct TriangleItems {
-  std::vector<std::uint32_t> itemOfPoint;  // by point
+  std::vector<std::uint32_t> itemOfPoint;  // by point (a split triangle's first piece)
   std::vector<std::uint32_t> triangle;     // by item, as are the arrays below
   std::vector<double> depthSum;
   std::vector<std::uint32_t> depthCount;
   std::vector<Vec3> pointSum;
   std::vector<Vec3> centroid;
+  std::vector<TrianglePiece> corners;
 };
 
 TriangleItems gatherItems(const TriangleMesh& mesh, const std::vector<Vec3>& points,
@@ -139,7 +142,43 @@ TriangleItems gatherItems(const TriangleMesh& mesh, const std::vector<Vec3>& poi
     }
   }
   items.centroid.resize(items.triangle.size());
-  for (std::size_t k = 0; k < items.triangle.size(); ++k) items.centroid[k] = mesh.centroid(items.triangle[k]);
+  items.corners.resize(items.triangle.size());
+  for (std::size_t k = 0; k < items.triangle.size(); ++k) {
+    const std::uint32_t t = items.triangle[k];
+    items.centroid[k] = mesh.centroid(t);
+    items.corners[k] = {mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2)};
+  }
+  return items;
+}
+
+// Whether some item has an edge longer than maxEdge.
+bool hasLongItem(const TriangleItems& items, double maxEdge) {
+  if (!(maxEdge > 0.0)) return false;
+  for (const TrianglePiece& t : items.corners)
+    if (longestEdge2(t) > maxEdge * maxEdge) return true;
+  return false;
+}
+
+// The items with each long triangle replaced by its pieces (forEachPiece, in order). A piece keeps its
+// triangle's depth hint; its mean point is its triangle's, moved by as much as its centroid is from the triangle's.
+TriangleItems splitLongItems(const TriangleItems& whole, double maxEdge) {
+  TriangleItems items;
+  std::vector<std::uint32_t> firstPiece(whole.triangle.size());
+  for (std::size_t k = 0; k < whole.triangle.size(); ++k) {
+    firstPiece[k] = static_cast<std::uint32_t>(items.triangle.size());
+    forEachPiece(whole.corners[k], maxEdge, kMaxPieceDepth, [&](const TrianglePiece& piece) {
+      const Vec3 centroid = (piece[0] + piece[1] + piece[2]) / 3.0;
+      items.triangle.push_back(whole.triangle[k]);
+      items.depthSum.push_back(whole.depthSum[k]);
+      items.depthCount.push_back(whole.depthCount[k]);
+      const double points = whole.depthCount[k];
+      items.pointSum.push_back(whole.pointSum[k] + points * (centroid - whole.centroid[k]));
+      items.centroid.push_back(centroid);
+      items.corners.push_back(piece);
+    });
+  }
+  items.itemOfPoint.resize(whole.itemOfPoint.size());
+  for (std::size_t i = 0; i < whole.itemOfPoint.size(); ++i) items.itemOfPoint[i] = firstPiece[whole.itemOfPoint[i]];
   return items;
 }
 
@@ -225,16 +264,16 @@ class PatchJudge {
     return kept;
   }
 
-  // Fills far2 / near2 of every candidate in one pass over the node's vertices.
+  // Fills far2 / near2 of every candidate in one pass over the corners of the node's items.
   void reach(Candidate* cand, int count, Range r) const {
     for (int j = 0; j < count; ++j) {
       cand[j].far2 = 0.0;
       cand[j].near2 = kInfinity;
     }
     for (std::uint32_t i = r.begin; i < r.end; ++i) {
-      const std::uint32_t t = items_.triangle[order_[i]];
+      const TrianglePiece& corners = items_.corners[order_[i]];
       for (int v = 0; v < 3; ++v) {
-        const Vec3& p = mesh_.vertex(t, v);
+        const Vec3& p = corners[v];
         for (int j = 0; j < count; ++j) {
           const double d2 = (p - cand[j].centre).squaredNorm();
           cand[j].far2 = std::max(cand[j].far2, d2);
@@ -403,6 +442,43 @@ std::uint32_t labelLeaves(const std::vector<std::vector<Leaf>>& groups, const st
   return count;
 }
 
+// The leaves as spheres fitted here (items are pieces, a split triangle in several leaves): in the order of the
+// tree (by where each leaf's range begins, which does not depend on the threads), each listing its items'
+// triangles (ascending, once) with the radius reaching its items' corners. A point is labelled with the
+// leaf of its triangle's first piece.
+std::uint32_t listLeaves(const std::vector<std::vector<Leaf>>& groups, const std::vector<std::uint32_t>& order,
+                         const TriangleItems& items, std::vector<std::uint32_t>& labels, std::vector<Vec3>& centres,
+                         ClusterLists& lists) {
+  std::vector<const Leaf*> leaves;
+  for (const std::vector<Leaf>& group : groups)
+    for (const Leaf& leaf : group) leaves.push_back(&leaf);
+  std::sort(leaves.begin(), leaves.end(), [](const Leaf* a, const Leaf* b) { return a->range.begin < b->range.begin; });
+  std::vector<std::uint32_t> clusterOf(order.size(), 0);
+  lists = ClusterLists{};
+  lists.offsets.push_back(0);
+  centres.clear();
+  std::vector<std::uint32_t> listed;
+  for (const Leaf* leaf : leaves) {
+    const auto c = static_cast<std::uint32_t>(centres.size());
+    listed.clear();
+    double far2 = 0.0;
+    for (std::uint32_t i = leaf->range.begin; i < leaf->range.end; ++i) {
+      const std::uint32_t item = order[i];
+      clusterOf[item] = c;
+      listed.push_back(items.triangle[item]);
+      for (const Vec3& corner : items.corners[item]) far2 = std::max(far2, (corner - leaf->centre).squaredNorm());
+    }
+    std::sort(listed.begin(), listed.end());
+    listed.erase(std::unique(listed.begin(), listed.end()), listed.end());
+    lists.triangles.insert(lists.triangles.end(), listed.begin(), listed.end());
+    lists.offsets.push_back(static_cast<std::uint32_t>(lists.triangles.size()));
+    lists.radii.push_back(std::sqrt(far2));
+    centres.push_back(leaf->centre);
+  }
+  for (std::size_t i = 0; i < items.itemOfPoint.size(); ++i) labels[i] = clusterOf[items.itemOfPoint[i]];
+  return static_cast<std::uint32_t>(centres.size());
+}
+
 }  // namespace
 
 SurfaceDistance::SurfaceDistance(const TriangleMesh& mesh) : mesh_(mesh) {
@@ -518,6 +594,10 @@ double SurfaceDistance::signedDistance(const Vec3& p, double bound) const {
   return (p - bestPoint).dot(mesh_.normals[bestTriangle]) > 0.0 ? -distance : distance;
 }
 
+TightClustering::TightClustering(double pieceEdge) : pieceEdge_(pieceEdge) {
+  requireNonNegative(pieceEdge, "piece edge");
+}
+
 std::uint32_t TightClustering::cluster(const std::vector<Vec3>& points, double d,
                                        std::vector<std::uint32_t>& labels) const {
   requireNonNegative(d, "clustering distance");
@@ -547,16 +627,24 @@ std::uint32_t TightClustering::cluster(const std::vector<Vec3>& points, double d
 
 std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::vector<Vec3>& points,
                                            const std::vector<std::uint32_t>& wrapped, double d,
-                                           std::vector<std::uint32_t>& labels, std::vector<Vec3>& centres) const {
+                                           std::vector<std::uint32_t>& labels, std::vector<Vec3>& centres,
+                                           ClusterLists* lists) const {
   requireNonNegative(d, "clustering distance");
   centres.clear();
+  if (lists) *lists = ClusterLists{};
   const std::size_t n = points.size();
   labels.assign(n, 0);
   if (n == 0) return 0;
   requireWrapped(mesh, n, wrapped);
-  const TriangleItems items = gatherItems(mesh, points, wrapped);
-  PatchTree tree(mesh, items, d);
-  return labelLeaves(tree.leaves(), tree.order(), items, labels, centres);
+  const TriangleItems whole = gatherItems(mesh, points, wrapped);
+  const double maxEdge = pieceEdge_ * mesh.diagonal();
+  if (lists == nullptr || !hasLongItem(whole, maxEdge)) {
+    PatchTree tree(mesh, whole, d);
+    return labelLeaves(tree.leaves(), tree.order(), whole, labels, centres);
+  }
+  const TriangleItems pieces = splitLongItems(whole, maxEdge);
+  PatchTree tree(mesh, pieces, d);
+  return listLeaves(tree.leaves(), tree.order(), pieces, labels, centres, *lists);
 }
 
 }  // namespace clod_haptics

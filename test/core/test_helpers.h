@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -82,9 +83,12 @@ inline std::shared_ptr<const TriangleMesh> loadNormalized(const std::string& pat
 }
 
 /**
- * \brief Checks the coverage invariant from its definition: every triangle has its three vertices
- * within the radius (times 1 + relTol, plus relTol of the model size) of at least one sphere that
- * lists it. Also checks the flat arrays are well formed and finite. Returns the problems found.
+ * \brief Checks the coverage invariant from its definition: every point of every triangle lies within the radius
+ * (times 1 + relTol, plus relTol of the model size) of a sphere that lists the triangle. A triangle passes at once
+ * when one listing sphere holds its three vertices; a triangle split over several spheres is sampled instead, on a
+ * barycentric grid at least 4 steps per smallest listing radius along its longest edge (not by the halving the
+ * library uses, so the check is independent of it). Also checks the flat arrays are well formed and finite.
+ * Returns the problems found.
  */
 inline std::vector<std::string> coverageProblems(const TriangleMesh& mesh, const ClodSphereSet& set,
                                                  double relTol = 1e-12) {
@@ -115,7 +119,31 @@ inline std::vector<std::string> coverageProblems(const TriangleMesh& mesh, const
       bool inside = true;
       for (int k = 0; k < 3; ++k) inside = inside && (mesh.vertex(*t, k) - set.centres[i]).norm() <= reach;
       if (inside) covered[*t] = 1;
+      else if (!covered[*t]) covered[*t] = 2;  // listed, not whole in this sphere
     }
+  }
+  std::vector<std::vector<std::uint32_t>> listing(mesh.size());
+  for (std::size_t i = 0; i < set.size(); ++i)
+    for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t)
+      if (*t < mesh.size() && covered[*t] == 2) listing[*t].push_back(static_cast<std::uint32_t>(i));
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
+    if (covered[t] != 2) continue;
+    const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
+    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    double smallest = std::numeric_limits<double>::infinity();
+    for (std::uint32_t i : listing[t]) smallest = std::min(smallest, set.radii[i]);
+    const int steps = static_cast<int>(std::min(1024.0, std::max(8.0, std::ceil(4.0 * longest / smallest))));
+    bool all = true;
+    for (int i = 0; i <= steps && all; ++i)
+      for (int j = 0; i + j <= steps && all; ++j) {
+        const double u = double(i) / steps, w = double(j) / steps;
+        const Vec3 p = (1 - u - w) * a + u * b + w * c;
+        bool inside = false;
+        for (std::uint32_t s : listing[t])
+          inside = inside || (p - set.centres[s]).norm() <= set.radii[s] * (1.0 + relTol) + relTol * size;
+        all = inside;
+      }
+    covered[t] = all ? 1 : 0;
   }
   for (std::size_t t = 0; t < mesh.size(); ++t)
     if (!covered[t]) report("triangle " + std::to_string(t) + " is inside no sphere that lists it");

@@ -32,7 +32,7 @@ const std::map<std::string, int> kCoreLayer = {
     {"sphere_cache", 7},     {"grid_cache", 7},     {"binary_io", 7},      {"mesh_cache", 7},       {"scene_assets", 8},
     {"polygon_soup", 1},     {"text_scanner", 1},   {"read_off", 1},         {"read_obj", 1},
     {"read_ply", 1},         {"read_stl", 1},
-    {"swept_query", 7},      {"swept_scene", 8},    {"haptic_renderer", 9},
+    {"swept_query", 7},      {"swept_scene", 8},    {"haptic_renderer", 9}, {"triangle_pieces", 1},
 };
 
 /** Every header and source of the package, by path relative to the root, with the files it includes. */

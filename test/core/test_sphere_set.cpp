@@ -11,6 +11,7 @@
 #include "clod_haptics/core/clustering.h"
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/sphere_set.h"
+#include "clod_haptics/core/triangle_pieces.h"
 #include "test_helpers.h"
 
 namespace {
@@ -220,6 +221,62 @@ TEST(ClodSphereSet, ConcurrentBuildsAgree) {
     EXPECT_EQ(sets[i].radii, sets[0].radii);
     EXPECT_EQ(sets[i].triangles, sets[0].triangles);
   }
+}
+
+// fitProblem and a triangle split over several spheres: one long triangle listed by one sphere per piece, each
+// holding its piece only. The union covers the triangle, so the set fits; shrinking any one sphere, or dropping
+// one from the lists, leaves a piece uncovered, and fitProblem says which triangle sticks out.
+TEST(ClodSphereSet, FitProblemAcceptsATriangleSplitOverSpheresAndNothingLess) {
+  // An isosceles right triangle: its halves are isosceles right triangles, each held by the ball on its longest
+  // edge (the smallest ball holding it).
+  const auto mesh = std::make_shared<const TriangleMesh>(
+      makeMesh({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)}, {Triangle{{0, 1, 2}}}, "right"));
+  ClodSphereSet set;
+  set.meshName = mesh->name;
+  std::vector<Vec3> centroids;  // of the pieces
+  const double maxEdge = 0.3;
+  forEachPiece({mesh->vertex(0, 0), mesh->vertex(0, 1), mesh->vertex(0, 2)}, maxEdge, kMaxPieceDepth,
+               [&](const TrianglePiece& piece) {
+                 int k = 0;  // the longest edge, from corner k to k + 1
+                 for (int e = 1; e < 3; ++e)
+                   if ((piece[(e + 1) % 3] - piece[e]).norm() > (piece[(k + 1) % 3] - piece[k]).norm()) k = e;
+                 const Vec3 centre = 0.5 * (piece[k] + piece[(k + 1) % 3]);
+                 double r = 0.0;
+                 for (const Vec3& v : piece) r = std::max(r, (v - centre).norm());
+                 centroids.push_back((piece[0] + piece[1] + piece[2]) / 3.0);
+                 set.centres.push_back(centre);
+                 set.radii.push_back(r);
+                 set.triangles.push_back(0);
+                 set.offsets.push_back(static_cast<std::uint32_t>(set.triangles.size()));
+               });
+  ASSERT_GE(set.size(), 8u);
+  for (std::size_t i = 0; i < set.size(); ++i) EXPECT_LT(set.radii[i], 0.5) << "no sphere holds the triangle";
+  EXPECT_EQ(fitProblem(*mesh, set), "");
+  EXPECT_TRUE(clod_test::coverageProblems(*mesh, set).empty());
+  // Balls around neighbouring pieces overlap: a sphere shrunk or dropped may leave its piece covered by the
+  // others. Where it leaves a point of the triangle (the piece's centroid) in no ball, the set must not fit.
+  std::size_t uncovering = 0;
+  for (std::size_t i = 0; i < set.size(); ++i) {
+    ClodSphereSet shrunk = set;
+    shrunk.radii[i] *= 0.3;
+    bool held = false;
+    for (std::size_t j = 0; j < set.size(); ++j)
+      held = held || (centroids[i] - shrunk.centres[j]).norm() <= shrunk.radii[j] * (1 + 1e-9);
+    if (held) continue;  // the piece's centroid is still in some ball
+    ++uncovering;
+    EXPECT_NE(fitProblem(*mesh, shrunk).find("triangle 0 sticks out"), std::string::npos) << "sphere " << i;
+    EXPECT_FALSE(clod_test::coverageProblems(*mesh, shrunk).empty()) << "sphere " << i;
+    ClodSphereSet dropped = set;  // sphere i no longer lists the triangle
+    dropped.triangles.erase(dropped.triangles.begin() + static_cast<std::ptrdiff_t>(i));
+    for (std::size_t j = i + 1; j < dropped.offsets.size(); ++j) --dropped.offsets[j];
+    EXPECT_NE(fitProblem(*mesh, dropped).find("sticks out"), std::string::npos) << "sphere " << i;
+  }
+  EXPECT_GE(uncovering, set.size() / 4);  // 8 of the 32 pieces here
+  // A sphere holding the whole triangle settles it, whatever the others hold.
+  ClodSphereSet big = set;
+  big.radii[0] = 2.0;
+  big.radii[1] = 0.0;
+  EXPECT_EQ(fitProblem(*mesh, big), "");
 }
 
 }  // namespace

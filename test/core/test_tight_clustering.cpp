@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -62,19 +63,50 @@ TEST(TightClustering, CoverageAndOneSpherePerTriangleOnEverySharedMesh) {
       const auto problems = coverageProblems(*mesh, set);
       EXPECT_TRUE(problems.empty()) << clod_test::join(problems);
       EXPECT_EQ(set.stats.spheres, set.size());
-      // Each triangle is listed by exactly one sphere (a partition of the surface).
-      std::vector<int> listed(mesh->size(), 0);
+      // Each triangle within the piece edge is listed by exactly one sphere (a partition of the surface); a longer
+      // one by at least one, at most by one per piece.
+      const double pieceEdge = TightClustering::kDefaultPieceEdge * mesh->diagonal();
+      std::vector<std::size_t> listed(mesh->size(), 0), pieces(mesh->size(), 0);
       for (std::uint32_t t : set.triangles) ++listed[t];
-      for (std::size_t t = 0; t < mesh->size(); ++t) ASSERT_EQ(listed[t], 1) << "triangle " << t;
-      if (d == 0.0) {
-        EXPECT_EQ(set.size(), mesh->size()) << "d = 0: one sphere per triangle";
+      std::size_t allPieces = 0;
+      for (std::size_t t = 0; t < mesh->size(); ++t) {
+        const Vec3 &a = mesh->vertex(t, 0), &b = mesh->vertex(t, 1), &c = mesh->vertex(t, 2);
+        // Pieces by a recount of the halving rule: halve the longest edge until every edge is within the piece edge.
+        std::vector<std::array<Vec3, 3>> stack{{a, b, c}};
+        while (!stack.empty()) {
+          const std::array<Vec3, 3> p = stack.back();
+          stack.pop_back();
+          const double e[3] = {(p[1] - p[0]).norm(), (p[2] - p[1]).norm(), (p[0] - p[2]).norm()};
+          const int k = e[0] >= e[1] && e[0] >= e[2] ? 0 : (e[1] >= e[2] ? 1 : 2);
+          if (e[k] <= pieceEdge) {
+            ++pieces[t];
+            continue;
+          }
+          const Vec3 m = 0.5 * (p[k] + p[(k + 1) % 3]);
+          stack.push_back({p[k], m, p[(k + 2) % 3]});
+          stack.push_back({m, p[(k + 1) % 3], p[(k + 2) % 3]});
+        }
+        allPieces += pieces[t];
+        ASSERT_GE(listed[t], 1u) << "triangle " << t;
+        ASSERT_LE(listed[t], pieces[t]) << "triangle " << t;
       }
-      // Radii stay tight: some listed vertex lies on each sphere.
+      if (d == 0.0) {
+        EXPECT_EQ(set.size(), allPieces) << "d = 0: one sphere per piece (per triangle within the piece edge)";
+      }
+      // Radii stay tight: a sphere listing only whole triangles has some listed vertex on it; one listing a split
+      // triangle reaches no farther than its triangles' vertices.
       for (std::size_t i = 0; i < set.size(); ++i) {
         double far = 0.0;
-        for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t)
+        bool split = false;
+        for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t) {
+          split = split || pieces[*t] > 1;
           for (int v = 0; v < 3; ++v) far = std::max(far, (mesh->vertex(*t, v) - set.centres[i]).norm());
-        ASSERT_NEAR(set.radii[i], far, 1e-12) << "sphere " << i;
+        }
+        if (split) {
+          ASSERT_LE(set.radii[i], far * (1 + 1e-12)) << "sphere " << i;
+        } else {
+          ASSERT_NEAR(set.radii[i], far, 1e-12) << "sphere " << i;
+        }
       }
     }
   }
@@ -187,24 +219,30 @@ std::vector<std::shared_ptr<const TriangleMesh>> thinMeshes() {
 }
 
 // Every point of every triangle lies in some sphere listing that triangle: checked at the points of a barycentric
-// grid of 8 steps per edge (45 points, corners and edges included) on every triangle. Returns the misses.
+// grid on every triangle (corners and edges included), 8 steps per edge or 4 per smallest listing radius along the
+// longest edge if more (a triangle split over small spheres). Returns the misses.
 std::size_t uncoveredSamples(const TriangleMesh& mesh, const ClodSphereSet& set) {
   std::vector<std::vector<std::uint32_t>> listing(mesh.size());
   for (std::size_t i = 0; i < set.size(); ++i)
     for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t)
       listing[*t].push_back(static_cast<std::uint32_t>(i));
-  constexpr int kSteps = 8;
   std::size_t misses = 0;
-  for (std::size_t t = 0; t < mesh.size(); ++t)
+  for (std::size_t t = 0; t < mesh.size(); ++t) {
+    const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
+    double smallest = std::numeric_limits<double>::infinity();
+    for (std::uint32_t s : listing[t]) smallest = std::min(smallest, set.radii[s]);
+    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    const int kSteps = static_cast<int>(std::clamp(std::ceil(4.0 * longest / smallest), 8.0, 512.0));
     for (int i = 0; i <= kSteps; ++i)
       for (int j = 0; i + j <= kSteps; ++j) {
         const double u = double(i) / kSteps, w = double(j) / kSteps;
-        const Vec3 p = (1 - u - w) * mesh.vertex(t, 0) + u * mesh.vertex(t, 1) + w * mesh.vertex(t, 2);
+        const Vec3 p = (1 - u - w) * a + u * b + w * c;
         bool inside = false;
         for (std::uint32_t s : listing[t])
           inside = inside || (p - set.centres[s]).norm() <= set.radii[s] * (1 + 1e-9) + 1e-12;
         misses += !inside;
       }
+  }
   return misses;
 }
 
@@ -287,6 +325,62 @@ TEST(TightClustering, ExactDetectionEqualsBruteForce) {
   }
 }
 
+TEST(TightClustering, LongTrianglesAreSplitOverSmallerSpheres) {
+  // Models of long triangles (a plate of 12, a cylinder of 48, 0.8 long, 0.02 to 0.03 thick): each triangle is
+  // split into pieces over several spheres, so no sphere has to hold a whole long triangle. Against the same
+  // strategy without splitting (pieceEdge 0): coverage from the definition, a largest sphere several times smaller,
+  // and exact detection equal to brute force through every fast level.
+  for (const auto& mesh :
+       {boxMesh(Vec3(0.4, 0.25, 0.015), 1, "plate 0.03 long"), cylinderMesh(0.01, 0.4, 12, 1, "cylinder 0.02 long")}) {
+    const ClodBuilder split(mesh, std::make_shared<PaperPlacement>(), std::make_shared<TightClustering>());
+    const ClodBuilder whole(mesh, std::make_shared<PaperPlacement>(), std::make_shared<TightClustering>(0.0));
+    const double pieceEdge = TightClustering::kDefaultPieceEdge * mesh->diagonal();
+    std::vector<Vec3> probes = nearSurfaceProbes(*mesh, 1500, 0.03, 31);
+    const std::vector<Vec3> uniform = uniformProbes(*mesh, 300, 0.03, 32);
+    probes.insert(probes.end(), uniform.begin(), uniform.end());
+    const double r = 0.005;
+    std::vector<ContactResult> reference(probes.size());
+    for (std::size_t i = 0; i < probes.size(); ++i) reference[i] = bruteForceQuery(*mesh, probes[i], r);
+    for (double d : {0.0, 0.005, 0.01, 0.02}) {
+      SCOPED_TRACE(mesh->name + " d=" + std::to_string(d));
+      const auto set = std::make_shared<const ClodSphereSet>(split.build(d));
+      const ClodSphereSet unsplit = whole.build(d);
+      EXPECT_EQ(fitProblem(*mesh, *set), "");
+      const auto problems = coverageProblems(*mesh, *set);
+      EXPECT_TRUE(problems.empty()) << clod_test::join(problems);
+      EXPECT_EQ(uncoveredSamples(*mesh, *set), 0u);
+      EXPECT_GT(set->triangles.size(), mesh->size()) << "long triangles are listed by several spheres";
+      const double largest = *std::max_element(set->radii.begin(), set->radii.end());
+      const double largestWhole = *std::max_element(unsplit.radii.begin(), unsplit.radii.end());
+      // A piece's edges are within the piece edge: a single piece's sphere reaches it from an inward centre.
+      EXPECT_LT(largest, 0.25 * largestWhole) << largest << " against " << largestWhole;
+      if (d <= 0.005) {
+        EXPECT_LE(largest, 2.0 * pieceEdge);
+      }
+      for (const FastLevel fast : {FastLevel::Flat, FastLevel::Hierarchy, FastLevel::Grid}) {
+        const ClodDetector detector(mesh, set, fast, r);
+        std::size_t mismatches = 0, contacts = 0;
+        ContactResult out;
+        for (std::size_t i = 0; i < probes.size(); ++i) {
+          const ContactResult& ref = reference[i];
+          if (std::abs(ref.distance - r) <= 1e-9 * r) continue;  // on the boundary: either answer is right
+          detector.query(probes[i], r, DetectionMode::Exact, out);
+          contacts += ref.contact;
+          if (out.contact != ref.contact || (ref.contact && std::abs(out.distance - ref.distance) > 1e-9 * r))
+            ++mismatches;
+          // Through the spheres alone (the grid's radius is r: a larger pointer goes through the levels' trees).
+          detector.query(probes[i], 3 * r, DetectionMode::Exact, out);
+          const ContactResult far = bruteForceQuery(*mesh, probes[i], 3 * r);
+          if (out.contact != far.contact || (far.contact && std::abs(out.distance - far.distance) > 1e-9 * r))
+            ++mismatches;
+        }
+        EXPECT_EQ(mismatches, 0u) << "fast level " << static_cast<int>(fast);
+        EXPECT_GT(contacts, 0u);
+      }
+    }
+  }
+}
+
 TEST(TightClustering, RepeatedAndConcurrentBuildsAgree) {
   // The subtrees run on several threads: the result must not depend on their timing.
   const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("mannequin-devil.off"));
@@ -314,7 +408,7 @@ TEST(TightClustering, LabelsFollowTrianglesAndAreNumberedInOrder) {
   }
   std::vector<std::uint32_t> labels;
   std::vector<Vec3> centres;
-  const std::uint32_t k = TightClustering().clusterMesh(*mesh, points, wrapped, 0.03, labels, centres);
+  const std::uint32_t k = TightClustering().clusterMesh(*mesh, points, wrapped, 0.03, labels, centres, nullptr);
   ASSERT_EQ(labels.size(), points.size());
   ASSERT_EQ(centres.size(), k);
   std::uint32_t next = 0;
@@ -363,11 +457,11 @@ TEST(TightClustering, BadInputThrowsInvalidParameter) {
   std::vector<Vec3> centres;
   for (double d : {-0.01, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
     EXPECT_THROW(clustering.cluster(points, d, labels), InvalidParameter);
-    EXPECT_THROW(clustering.clusterMesh(*mesh, points, {0, 1}, d, labels, centres), InvalidParameter);
+    EXPECT_THROW(clustering.clusterMesh(*mesh, points, {0, 1}, d, labels, centres, nullptr), InvalidParameter);
   }
-  EXPECT_THROW(clustering.clusterMesh(*mesh, points, {0}, 0.1, labels, centres), InvalidParameter);
-  EXPECT_THROW(clustering.clusterMesh(*mesh, points, {0, 99}, 0.1, labels, centres), InvalidParameter);
-  EXPECT_EQ(clustering.clusterMesh(*mesh, {}, {}, 0.1, labels, centres), 0u);
+  EXPECT_THROW(clustering.clusterMesh(*mesh, points, {0}, 0.1, labels, centres, nullptr), InvalidParameter);
+  EXPECT_THROW(clustering.clusterMesh(*mesh, points, {0, 99}, 0.1, labels, centres, nullptr), InvalidParameter);
+  EXPECT_EQ(clustering.clusterMesh(*mesh, {}, {}, 0.1, labels, centres, nullptr), 0u);
   const ClodBuilder builder(mesh, std::make_shared<PaperPlacement>(), makeClustering("tight"));
   EXPECT_THROW(builder.build(-1.0), InvalidParameter);
 }

@@ -16,6 +16,18 @@ namespace clod_haptics {
 void requireNonNegative(double value, const char* what);
 
 /**
+ * \brief Spheres a strategy fits itself (see Clustering::clusterMesh): sphere c lists the triangles
+ * triangles[offsets[c] .. offsets[c+1]), ascending and unique, and radii[c] reaches the part of each of them it
+ * covers: the whole triangle, or some pieces of a split one (triangle_pieces.h) whose other pieces other spheres
+ * cover. Empty (no offsets) when the builder is to fit the spheres from the labels.
+ */
+struct ClusterLists {
+  std::vector<std::uint32_t> offsets;
+  std::vector<std::uint32_t> triangles;
+  std::vector<double> radii;
+};
+
+/**
  * \brief Strategy that groups sphere centres into clusters for a clustering distance d.
  * Labels are 0..k-1, numbered in the order of each cluster's first point.
  */
@@ -30,14 +42,18 @@ class Clustering {
   /**
    * \brief The same, for a strategy that reads the mesh: wrapped[i] is the triangle point i wraps. It
    * may also choose each cluster's sphere centre (centres[c]); left empty, the builder uses the mean of
-   * the members. The builder calls this one; the default ignores the mesh and calls cluster().
+   * the members. With lists not null, a strategy may also fit the spheres itself (lists, then centres are
+   * set too), to split a long triangle over several spheres; it leaves lists empty otherwise, and so does a
+   * strategy given null. The builder calls this one; the default ignores the mesh and calls cluster().
    */
   virtual std::uint32_t clusterMesh(const TriangleMesh& mesh, const std::vector<Vec3>& points,
                                     const std::vector<std::uint32_t>& wrapped, double d,
-                                    std::vector<std::uint32_t>& labels, std::vector<Vec3>& centres) const {
+                                    std::vector<std::uint32_t>& labels, std::vector<Vec3>& centres,
+                                    ClusterLists* lists) const {
     (void)mesh;
     (void)wrapped;
     centres.clear();
+    if (lists) *lists = ClusterLists{};
     return cluster(points, d, labels);
   }
 };

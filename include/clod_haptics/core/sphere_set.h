@@ -28,8 +28,11 @@ struct BuildStats {
  * \brief One contact level of detail: the clustered spheres of a mesh for a clustering distance.
  *
  * Flat arrays: sphere i has centres[i], radii[i] and wraps the triangles
- * triangles[offsets[i] .. offsets[i+1]). Invariant: every triangle of the mesh lies inside at
- * least one sphere that lists it (its radius reaches every vertex of every listed triangle).
+ * triangles[offsets[i] .. offsets[i+1]). Invariant: every point of every triangle of the mesh lies inside
+ * some sphere that lists that triangle. Usually one sphere holds the whole triangle (its radius reaches every
+ * vertex of every triangle it lists); a long triangle may instead be split: listed by several spheres, each holding
+ * some of its pieces (triangle_pieces.h), which together tile it. The detector relies on that invariant alone: a
+ * contact at a point q of triangle t lies in a sphere listing t, which the pointer then overlaps, so t is tested.
  */
 struct ClodSphereSet {
   std::string meshName;
@@ -67,7 +70,8 @@ class ClodBuilder {
   /**
    * \brief Clusters the placed spheres with distance d and fits one sphere per cluster: its centre is
    * the mean of the member centres (on the central axis for a thin part), or the one the clustering
-   * chose (Clustering::clusterMesh), and its radius reaches every vertex of every triangle the members wrap.
+   * chose (Clustering::clusterMesh), and its radius reaches every vertex of every triangle the members wrap;
+   * or the spheres the strategy fitted itself (ClusterLists), a long triangle split over several of them.
    * \throws InvalidParameter for a negative or non-finite d.
    */
   ClodSphereSet build(double d) const;
@@ -108,10 +112,11 @@ std::vector<std::uint32_t> firstSphereOfTriangles(const ClodSphereSet& set, std:
 /**
  * \brief Why the set does not fit the mesh, or "" when it does. It fits when its arrays are consistent (offsets from
  * 0, never decreasing, up to the list's end), every sphere is finite, every listed index is a triangle of the mesh,
- * every listed triangle's vertices lie in the sphere (within radius * (1 + 1e-9) + relativeTolerance * the mesh's
- * diagonal) and every triangle is listed. The coverage invariant the detector relies on to miss no contact, and
- * what keeps its lists inside the mesh's arrays. O(list entries); the one check of the detector's constructor,
- * the sphere cache and the ROS service client.
+ * and every triangle is covered by the spheres listing it: its three vertices lie in one of them (within radius *
+ * (1 + 1e-9) + relativeTolerance * the mesh's diagonal), or else each of its pieces, halved as forEachPiece halves
+ * it up to kMaxPieceDepth times, lies in one of them (a split triangle). The coverage invariant the detector relies
+ * on to miss no contact, and what keeps its lists inside the mesh's arrays. O(list entries) for sets without split
+ * triangles; the one check of the detector's constructor, the sphere cache and the ROS service client.
  */
 std::string fitProblem(const TriangleMesh& mesh, const ClodSphereSet& set, double relativeTolerance = 1e-12);
 

@@ -14,7 +14,8 @@ namespace clod_haptics {
  * \brief Tight sphere sets ("tight" in makeClustering): the surface is split top-down into patches,
  * each wrapped by a sphere centred deep inside the mesh, so that only a thin cap of it lies outside.
  *
- * Every triangle goes to exactly one cluster (the points that wrap it follow it). The clusters are the
+ * Every triangle goes to exactly one cluster (the points that wrap it follow it), except a long one split into
+ * pieces (below), which goes to every cluster holding one of its pieces. The clusters are the
  * leaves of a binary tree that does not depend on d: a node's triangles are split in two at the mean of
  * their centroids along the principal axis of those centroids. A node becomes a sphere when its
  * excess is at most d^3: with R reaching every vertex of its triangles, rho the signed distance from
@@ -38,19 +39,44 @@ namespace clod_haptics {
  * works (the default is PaperPlacement: points a quarter of the way to the opposite triangle).
  * The builder still sets each radius to reach every vertex of every listed triangle, so coverage
  * holds whatever the centres are: every point of every triangle lies in the sphere listing it (the
- * invariant the detector relies on, see ClodSphereSet). A long triangle therefore sits whole in one
- * sphere, whose radius is at least half the triangle's longest edge: a model of long thin triangles keeps
- * large spheres at every d (splitting a triangle over several spheres is not done).
+ * invariant the detector relies on, see ClodSphereSet).
+ *
+ * Long triangles: a triangle wholly in one sphere makes that sphere's radius at least half the triangle's longest
+ * edge, so a model of long thin triangles would keep large spheres at every d. When some wrapped triangle has an
+ * edge longer than pieceEdge times the mesh's diagonal (and the builder asks for lists), the items of the tree are
+ * pieces instead: each such triangle halved across its longest edge until no edge is longer (forEachPiece, at
+ * most kMaxPieceDepth halvings), the others whole. A piece keeps its triangle's depth hint and normal. The strategy
+ * then fits the spheres itself (ClusterLists): each lists the triangles of its pieces, once, and its radius reaches
+ * its pieces' corners. A split triangle is listed by every sphere holding one of its pieces; the pieces tile it,
+ * so every point of it lies in a sphere listing it (the invariant; fitProblem checks it by the same halving). The
+ * tree, and so the count's monotonicity in d, does not depend on d: the pieces depend on the mesh alone. d = 0
+ * gives one sphere per piece.
  *
  * Without the mesh (the plain cluster() call) the same split runs on the points alone and a node is
  * kept when all its points lie within d / 2 of their mean. Expected O(n log n).
  */
 class TightClustering : public Clustering {
  public:
+  /** \brief The default longest edge of a piece, relative to the mesh's diagonal. */
+  static constexpr double kDefaultPieceEdge = 1.0 / 32.0;
+
+  /**
+   * \brief pieceEdge: a triangle with an edge longer than pieceEdge times the mesh's diagonal is split into pieces
+   * (see above); 0 splits none.
+   * \throws InvalidParameter for a negative or non-finite pieceEdge.
+   */
+  explicit TightClustering(double pieceEdge = kDefaultPieceEdge);
+
   std::uint32_t cluster(const std::vector<Vec3>& points, double d, std::vector<std::uint32_t>& labels) const override;
   std::uint32_t clusterMesh(const TriangleMesh& mesh, const std::vector<Vec3>& points,
                             const std::vector<std::uint32_t>& wrapped, double d, std::vector<std::uint32_t>& labels,
-                            std::vector<Vec3>& centres) const override;
+                            std::vector<Vec3>& centres, ClusterLists* lists) const override;
+
+  /** \brief The longest edge of a piece, relative to the mesh's diagonal (0: no triangle is split). */
+  double pieceEdge() const { return pieceEdge_; }
+
+ private:
+  double pieceEdge_;
 };
 
 /**
