@@ -145,7 +145,9 @@ class DetectorClient {
       EXPECT_NEAR(normal.norm(), 1.0, 1e-9);
       EXPECT_GT(c.triangle, -1);
     }
-    if (!proxyModel_) EXPECT_FALSE(c.proxy_active);
+    if (!proxyModel_) {
+      EXPECT_FALSE(c.proxy_active);
+    }
     if (proxyModel_ && !c.proxy_active) {
       // The proxy waits to start until the pointer touches nothing and is not inside: a touching or inside
       // pointer (brute force with no radius bound) is the only reason to answer with the penalty force.
