@@ -1,6 +1,7 @@
 // thin_bench: tightness of sphere sets on thin parts (generated plates, cylinders, branches, legs) and on the shared
 // meshes, at the same sphere count: the tight clustering (ClodBuilder::buildAtMost on TightClustering), a
-// Hubbard-like medial reference (medial_reference.h) and an octree (tightness.h). Surface coverage by sampling,
+// Hubbard-like medial reference (medial_reference.h) and an octree (tightness.h); also the tight clustering
+// without splitting long triangles (every triangle whole in one sphere). Surface coverage by sampling,
 // outside volume by Monte Carlo (relative to the mesh volume), build time. Writes thin_tightness.csv and, for the
 // pictures, thin_spheres.csv (the spheres of the plate and legs models).
 //
@@ -21,6 +22,7 @@
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/sphere_placement.h"
 #include "clod_haptics/core/sphere_set.h"
+#include "clod_haptics/core/tight_clustering.h"
 #include "medial_reference.h"
 #include "thin_models.h"
 #include "tightness.h"
@@ -150,6 +152,9 @@ int main(int argc, char** argv) {
         fresh.build(tight.distance);
         tightMs = std::min(tightMs, msSince(t0));
       }
+      // The same strategy holding every triangle whole in one sphere (no pieces), for what splitting gives.
+      const ClodBuilder wholeBuilder(mesh, std::make_shared<PaperPlacement>(), std::make_shared<TightClustering>(0.0));
+      const ClodSphereSet whole = wholeBuilder.buildAtMost(n);
       const ClodBuilder linkBuilder(mesh);
       const ClodSphereSet link = linkBuilder.buildAtMost(n);
       int depth = 0;
@@ -161,6 +166,7 @@ int main(int argc, char** argv) {
         double d, ms;
       };
       for (const Row& r : {Row{"medial-reference", medial, NAN, NAN}, Row{"clod-tight", listOf(tight), tight.distance, tightMs},
+                           Row{"clod-tight-whole", listOf(whole), whole.distance, NAN},
                            Row{"clod-single-link", listOf(link), link.distance, NAN}, Row{"octree", octree, NAN, NAN}}) {
         const Measure m = measure(r.s, inside, surface, volume, mcSamples, 1);
         csv << model.name << ',' << mesh->size() << ",\"" << model.description << "\"," << target << ',' << r.kind << ','

@@ -13,7 +13,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Circle, Rectangle  # noqa: E402
 
-KINDS = [("medial-reference", "medial reference"), ("clod-tight", "tight"), ("octree", "octree")]
+KINDS = [("medial-reference", "medial reference"), ("clod-tight", "tight"), ("clod-tight-whole", "tight, whole triangles"),
+         ("octree", "octree")]
 PLATE, PLATE_HALF = "plate-0.015-mixed", (0.4, 0.0075)
 LEGS, SECTION_Z = "legs", -0.1
 

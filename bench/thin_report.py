@@ -1,8 +1,7 @@
 #!/usr/bin/python3
 """Markdown table of thin_bench's results: per model and target count, each kind's spheres and outside volume.
 
-usage: thin_report.py DIR [BEFORE.csv]   (reads DIR/thin_tightness.csv, writes DIR/thin_tightness.md; BEFORE: the
-same bench with the one-sided cap score, for a column of the tight sets it made)
+usage: thin_report.py DIR   (reads DIR/thin_tightness.csv, writes DIR/thin_tightness.md)
 """
 import csv
 import sys
@@ -16,19 +15,14 @@ def rows(path):
         return list(csv.DictReader(f))
 
 
-def main(directory, before_path=None):
+def main(directory):
     data = rows(directory + "/thin_tightness.csv")
-    before = {}
-    if before_path:
-        for r in rows(before_path):
-            if r["kind"] == "clod-tight":
-                before[(r["model"], r["target"])] = r
     groups = {}
     for r in data:
         groups.setdefault((r["model"], r["target"]), {})[r["kind"]] = r
     out = ["| model | triangles | target | medial ref: spheres, outside, covered | tight: spheres, outside, covered, build ms "
            "| tight / medial | octree: spheres, outside | tight / octree | single-link: spheres, outside "
-           "| tight before (cap score) | met |",
+           "| tight, whole triangles: spheres, outside | met |",
            "|---|---|---|---|---|---|---|---|---|---|---|"]
     for (model, target), k in groups.items():
         m, t, o, s = k["medial-reference"], k["clod-tight"], k["octree"], k["clod-single-link"]
@@ -37,7 +31,7 @@ def main(directory, before_path=None):
         # the two references' outside volumes. An open mesh has no inside: no verdict.
         met = float(t["surface_covered"]) == 1.0 and to <= 0.8 * min(mo, oo) and int(t["spheres"]) <= int(m["spheres"])
         verdict = "open mesh" if model in OPEN else ("yes" if met else "no")
-        b = before.get((model, target))
+        b = k.get("clod-tight-whole")
         out.append("| %s | %s | %s | %s, %.3g, %.2f%% | %s, %.3g, %.2f%%, %.1f | %.2f | %s, %.3g | %.2f | %s, %.3g | %s | %s |" % (
             model, t["triangles"], target, m["spheres"], mo, 100 * float(m["surface_covered"]), t["spheres"], to,
             100 * float(t["surface_covered"]), float(t["build_ms"]), to / mo, o["spheres"], oo, to / oo, s["spheres"],
@@ -50,4 +44,4 @@ def main(directory, before_path=None):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2] if len(sys.argv) > 2 else None)
+    main(sys.argv[1])
