@@ -9,6 +9,7 @@
 #include <string>
 #include <thread>
 
+#include "clod_haptics/core/box_tree.h"
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
 #include "clod_haptics/core/morton.h"
@@ -216,8 +217,9 @@ class PatchJudge {
   PatchJudge(const TriangleMesh& mesh, const TriangleItems& items, const std::vector<std::uint32_t>& order, double d)
       : mesh_(mesh), items_(items), order_(order), surface_(mesh), bvh_(mesh), dirs_(rayDirections()), d3_(d * d * d) {}
 
-  // Whether node r becomes a sphere; its centre in best either way.
-  bool evaluate(Range r, Vec3& best) const {
+  // Whether node r becomes a sphere; its centre in best either way, and in passed whether its excess is within
+  // d^3 (a single item is kept even when it is not).
+  bool evaluate(Range r, Vec3& best, bool& passed) const {
     Candidate cand[kMaxCandidates];
     const int count = placeCandidates(r, cand);
     reach(cand, count, r);
@@ -225,7 +227,8 @@ class PatchJudge {
     // A single triangle is kept whatever d is: its centre is chosen on exact values.
     const bool single = r.end - r.begin == 1;
     const double bestExcess = pickCentre(cand, count, single ? kInfinity : d3_, best);
-    return single || bestExcess <= d3_;
+    passed = bestExcess <= d3_;
+    return single || passed;
   }
 
  private:
@@ -312,8 +315,7 @@ class PatchJudge {
     }
     // The cap sees one side; a ball in a thin part also sticks out on the far side (a plate) or all round (a leg).
     // Scored for the chosen centre, once its cap passes.
-    if (std::isfinite(threshold) && bestExcess <= threshold)
-      bestExcess = std::max(bestExcess, outsideAllRound(best, bestRadius, threshold));
+    if (bestExcess <= d3_) bestExcess = std::max(bestExcess, outsideAllRound(best, bestRadius, d3_));
     return bestExcess;
   }
 
@@ -346,6 +348,7 @@ class PatchJudge {
 struct Leaf {
   Range range;
   Vec3 centre;
+  bool passed;  // its excess is within d^3 (not so for a single item kept whatever d is)
 };
 
 // The tree over the items, cut where the judge keeps a node. Items of disjoint nodes are disjoint ranges
@@ -377,8 +380,8 @@ class PatchTree {
 
  private:
   // Whether node r is a leaf (with its centre); if not, it is split and mid is where its second half starts.
-  bool isLeaf(Range r, Vec3& centre, std::uint32_t& mid) {
-    if (judge_.evaluate(r, centre)) return true;
+  bool isLeaf(Range r, Vec3& centre, bool& passed, std::uint32_t& mid) {
+    if (judge_.evaluate(r, centre, passed)) return true;
     mid = splitAtMean(order_, r.begin, r.end, items_.centroid);
     return false;
   }
@@ -390,9 +393,10 @@ class PatchTree {
     while (threads > 1 && next < tasks.size() && tasks.size() - next < 4 * std::size_t(threads)) {
       const Range r = tasks[next++];
       Vec3 centre;
+      bool passed;
       std::uint32_t mid;
-      if (isLeaf(r, centre, mid)) {
-        top.push_back({r, centre});
+      if (isLeaf(r, centre, passed, mid)) {
+        top.push_back({r, centre, passed});
         continue;
       }
       tasks.push_back({r.begin, mid});
@@ -408,9 +412,10 @@ class PatchTree {
       const Range r = stack.back();
       stack.pop_back();
       Vec3 centre;
+      bool passed;
       std::uint32_t mid;
-      if (isLeaf(r, centre, mid)) {
-        leaves.push_back({r, centre});
+      if (isLeaf(r, centre, passed, mid)) {
+        leaves.push_back({r, centre, passed});
         continue;
       }
       stack.push_back({mid, r.end});
@@ -442,10 +447,104 @@ std::uint32_t labelLeaves(const std::vector<std::vector<Leaf>>& groups, const st
   return count;
 }
 
-// The leaves as spheres fitted here (items are pieces, a split triangle in several leaves): in the order of the
-// tree (by where each leaf's range begins, which does not depend on the threads), each listing its items'
-// triangles (ascending, once) with the radius reaching its items' corners. A point is labelled with the
-// leaf of its triangle's first piece.
+// Squared distance from c to the farthest corner of an item.
+inline double farthest2(const TrianglePiece& corners, const Vec3& c) {
+  return std::max({(corners[0] - c).squaredNorm(), (corners[1] - c).squaredNorm(), (corners[2] - c).squaredNorm()});
+}
+
+// Hands each item to the sphere it lies deepest in, keeping the centres: an item goes to the sphere s that
+// holds all its corners (at the current radii) with the most room, max over corners |corner - c_s| - R_s least,
+// among its own and those whose excess passed the judge (open: not a single item kept whatever its excess, which
+// stays with what it wraps); its own is one of them, so no sphere grows. Each radius then shrinks to its items' farthest corner:
+// an item at the edge of a large patch that a neighbouring sphere already holds stops setting that sphere's
+// radius. A smaller radius about the same centre only lowers the sphere's cap and its volume outside, so the
+// judge's bound still holds. Up to 8 rounds (until no item moves), each computed from the previous round's radii,
+// so the result does not depend on the order of the items or the threads. cluster[item] in, out; returns the
+// radii (a sphere left without items gets -1).
+std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::vector<Vec3>& centres,
+                                        const std::vector<char>& open, std::vector<std::uint32_t>& cluster) {
+  constexpr int kRounds = 8;
+  const std::size_t k = centres.size(), n = cluster.size();
+  std::vector<double> far2(k, 0.0), radius(k);
+  auto fitRadii = [&] {
+    std::fill(far2.begin(), far2.end(), 0.0);
+    for (std::size_t item = 0; item < n; ++item)
+      far2[cluster[item]] = std::max(far2[cluster[item]], farthest2(items.corners[item], centres[cluster[item]]));
+    for (std::size_t c = 0; c < k; ++c) radius[c] = std::sqrt(far2[c]);
+  };
+  fitRadii();
+  // Candidates, once: the open spheres that hold the item at the first radii, and its own. Radii only shrink, so
+  // no other sphere can hold it in a later round. Per thread, its own run of items.
+  std::vector<Eigen::AlignedBox3d> balls(k);
+  for (std::size_t c = 0; c < k; ++c)
+    balls[c] = Eigen::AlignedBox3d(centres[c] - Vec3::Constant(radius[c]), centres[c] + Vec3::Constant(radius[c]));
+  std::vector<BoxNode> nodes;
+  std::vector<std::uint32_t> order;
+  if (buildBoxTree(balls, 4, 0.0, nodes, order) == kNone) return radius;
+  const unsigned threads = detail::threadsFor(n, 0, 4096);
+  std::vector<std::vector<std::uint32_t>> candidates(threads), starts(threads);
+  detail::runParallel(threads, [&](unsigned t) {
+    std::uint32_t stack[64];
+    std::vector<std::uint32_t>& list = candidates[t];
+    std::vector<std::uint32_t>& start = starts[t];
+    for (std::size_t item = n * t / threads; item < n * (t + 1) / threads; ++item) {
+      start.push_back(static_cast<std::uint32_t>(list.size()));
+      const TrianglePiece& corners = items.corners[item];
+      const Vec3& p = items.centroid[item];
+      int top = 0;
+      stack[top++] = 0;
+      while (top > 0) {
+        const BoxNode& node = nodes[stack[--top]];
+        if (squaredDistanceToNode(node, p.x(), p.y(), p.z()) > 0.0) continue;  // a ball holding the item holds p
+        if (node.count == 0) {
+          stack[top++] = node.first;
+          stack[top++] = static_cast<std::uint32_t>(&node - nodes.data()) + 1;
+          continue;
+        }
+        for (std::uint32_t j = node.first; j < node.first + node.count; ++j) {
+          const std::uint32_t s = order[j];
+          if (!open[s] || (p - centres[s]).squaredNorm() > far2[s]) continue;  // nor the item then
+          if (farthest2(corners, centres[s]) <= far2[s]) list.push_back(s);
+        }
+      }
+    }
+    start.push_back(static_cast<std::uint32_t>(list.size()));
+  });
+  // Rounds: each item decides from the previous round's radii and writes its own entry.
+  for (int round = 0; round < kRounds; ++round) {
+    std::vector<char> moved(threads, 0);
+    detail::runParallel(threads, [&](unsigned t) {
+      const std::size_t first = n * t / threads;
+      for (std::size_t item = first; item < n * (t + 1) / threads; ++item) {
+        const TrianglePiece& corners = items.corners[item];
+        const std::uint32_t own = cluster[item];
+        std::uint32_t best = own;
+        double room = std::sqrt(farthest2(corners, centres[own])) - radius[own];
+        for (std::uint32_t j = starts[t][item - first]; j < starts[t][item - first + 1]; ++j) {
+          const std::uint32_t s = candidates[t][j];
+          const double need = std::sqrt(farthest2(corners, centres[s])) - radius[s];
+          if (need < room || (need == room && s < best)) {
+            room = need;
+            best = s;
+          }
+        }
+        moved[t] = moved[t] || best != own;
+        cluster[item] = best;
+      }
+    });
+    if (std::find(moved.begin(), moved.end(), 1) == moved.end()) break;
+    fitRadii();
+  }
+  std::vector<double> radii(k, -1.0);
+  for (std::size_t item = 0; item < n; ++item) radii[cluster[item]] = radius[cluster[item]];
+  return radii;
+}
+
+// The leaves as spheres fitted here (a split triangle's pieces may sit in several leaves): in the order of the
+// tree (by where each leaf's range begins, which does not depend on the threads), the items handed over to the
+// sphere they lie deepest in (shrinkByHandingOver), each sphere listing its items' triangles (ascending, once)
+// with the radius reaching its items' corners; a sphere left without items is dropped. A point is labelled
+// with the sphere of its triangle's first piece.
 std::uint32_t listLeaves(const std::vector<std::vector<Leaf>>& groups, const std::vector<std::uint32_t>& order,
                          const TriangleItems& items, std::vector<std::uint32_t>& labels, std::vector<Vec3>& centres,
                          ClusterLists& lists) {
@@ -453,29 +552,39 @@ std::uint32_t listLeaves(const std::vector<std::vector<Leaf>>& groups, const std
   for (const std::vector<Leaf>& group : groups)
     for (const Leaf& leaf : group) leaves.push_back(&leaf);
   std::sort(leaves.begin(), leaves.end(), [](const Leaf* a, const Leaf* b) { return a->range.begin < b->range.begin; });
-  std::vector<std::uint32_t> clusterOf(order.size(), 0);
+  std::vector<std::uint32_t> cluster(order.size(), 0);
+  std::vector<Vec3> leafCentres;
+  std::vector<char> open;
+  for (const Leaf* leaf : leaves) {
+    for (std::uint32_t i = leaf->range.begin; i < leaf->range.end; ++i)
+      cluster[order[i]] = static_cast<std::uint32_t>(leafCentres.size());
+    leafCentres.push_back(leaf->centre);
+    open.push_back(leaf->passed);
+  }
+  const std::vector<double> radii = shrinkByHandingOver(items, leafCentres, open, cluster);
+  // Items by sphere (a counting sort), the spheres without items dropped.
+  std::vector<std::uint32_t> begin(leafCentres.size() + 1, 0), byCluster(cluster.size());
+  for (const std::uint32_t c : cluster) ++begin[c + 1];
+  for (std::size_t c = 0; c < leafCentres.size(); ++c) begin[c + 1] += begin[c];
+  std::vector<std::uint32_t> next(begin.begin(), begin.end() - 1), renumber(leafCentres.size(), kNone);
+  for (std::size_t item = 0; item < cluster.size(); ++item) byCluster[next[cluster[item]]++] = static_cast<std::uint32_t>(item);
   lists = ClusterLists{};
   lists.offsets.push_back(0);
   centres.clear();
   std::vector<std::uint32_t> listed;
-  for (const Leaf* leaf : leaves) {
-    const auto c = static_cast<std::uint32_t>(centres.size());
+  for (std::size_t c = 0; c < leafCentres.size(); ++c) {
+    if (begin[c] == begin[c + 1]) continue;
+    renumber[c] = static_cast<std::uint32_t>(centres.size());
     listed.clear();
-    double far2 = 0.0;
-    for (std::uint32_t i = leaf->range.begin; i < leaf->range.end; ++i) {
-      const std::uint32_t item = order[i];
-      clusterOf[item] = c;
-      listed.push_back(items.triangle[item]);
-      for (const Vec3& corner : items.corners[item]) far2 = std::max(far2, (corner - leaf->centre).squaredNorm());
-    }
+    for (std::uint32_t j = begin[c]; j < begin[c + 1]; ++j) listed.push_back(items.triangle[byCluster[j]]);
     std::sort(listed.begin(), listed.end());
     listed.erase(std::unique(listed.begin(), listed.end()), listed.end());
     lists.triangles.insert(lists.triangles.end(), listed.begin(), listed.end());
     lists.offsets.push_back(static_cast<std::uint32_t>(lists.triangles.size()));
-    lists.radii.push_back(std::sqrt(far2));
-    centres.push_back(leaf->centre);
+    lists.radii.push_back(radii[c]);
+    centres.push_back(leafCentres[c]);
   }
-  for (std::size_t i = 0; i < items.itemOfPoint.size(); ++i) labels[i] = clusterOf[items.itemOfPoint[i]];
+  for (std::size_t i = 0; i < items.itemOfPoint.size(); ++i) labels[i] = renumber[cluster[items.itemOfPoint[i]]];
   return static_cast<std::uint32_t>(centres.size());
 }
 
@@ -637,14 +746,15 @@ std::uint32_t TightClustering::clusterMesh(const TriangleMesh& mesh, const std::
   if (n == 0) return 0;
   requireWrapped(mesh, n, wrapped);
   const TriangleItems whole = gatherItems(mesh, points, wrapped);
-  const double maxEdge = pieceEdge_ * mesh.diagonal();
-  if (lists == nullptr || !hasLongItem(whole, maxEdge)) {
+  if (lists == nullptr) {  // the caller fits the spheres: whole triangles, the leaves as they are
     PatchTree tree(mesh, whole, d);
     return labelLeaves(tree.leaves(), tree.order(), whole, labels, centres);
   }
-  const TriangleItems pieces = splitLongItems(whole, maxEdge);
-  PatchTree tree(mesh, pieces, d);
-  return listLeaves(tree.leaves(), tree.order(), pieces, labels, centres, *lists);
+  const double maxEdge = pieceEdge_ * mesh.diagonal();
+  const TriangleItems items = hasLongItem(whole, maxEdge) ? splitLongItems(whole, maxEdge) : TriangleItems{};
+  const TriangleItems& use = items.triangle.empty() ? whole : items;
+  PatchTree tree(mesh, use, d);
+  return listLeaves(tree.leaves(), tree.order(), use, labels, centres, *lists);
 }
 
 }  // namespace clod_haptics
