@@ -149,4 +149,19 @@ SphereList medialSpheres(const TriangleMesh& mesh, std::size_t target, std::size
   return kept;
 }
 
+SphereList grownToCover(SphereList spheres, const TriangleMesh& mesh, std::size_t samples, std::uint64_t seed) {
+  std::vector<Vec3> points;
+  surfaceSamples(mesh, samples, seed, points, nullptr);
+  for (const Vec3& p : points) {
+    double least = std::numeric_limits<double>::infinity();
+    std::size_t grow = 0;
+    for (std::size_t i = 0; i < spheres.radii.size(); ++i) {
+      const double need = (p - spheres.centres[i]).norm() - spheres.radii[i];
+      if (need < least) least = need, grow = i;
+    }
+    if (least > 0.0) spheres.radii[grow] += least;
+  }
+  return spheres;
+}
+
 }  // namespace clod_bench
