@@ -45,6 +45,23 @@ double referenceSignedDistance(const TriangleMesh& mesh, const Vec3& p, bool& am
   return outside > 0 && inside == 0 ? -best : best;
 }
 
+// Probes whose exact answer for a pointer of radius r differs from the brute-force reference (contact, or distance
+// beyond 1e-9 r); probes on the boundary (distance r within 1e-9 r) are skipped: either answer is right. contacts:
+// the reference contacts among the probes compared.
+std::size_t mismatches(const ClodDetector& detector, const std::vector<Vec3>& probes,
+                       const std::vector<ContactResult>& reference, double r, std::size_t& contacts) {
+  std::size_t wrong = 0;
+  ContactResult out;
+  for (std::size_t i = 0; i < probes.size(); ++i) {
+    const ContactResult& ref = reference[i];
+    if (std::abs(ref.distance - r) <= 1e-9 * r) continue;
+    detector.query(probes[i], r, DetectionMode::Exact, out);
+    contacts += ref.contact;
+    wrong += out.contact != ref.contact || (ref.contact && std::abs(out.distance - ref.distance) > 1e-9 * r);
+  }
+  return wrong;
+}
+
 TEST(TightClustering, RegisteredByName) {
   EXPECT_NE(std::dynamic_pointer_cast<const TightClustering>(makeClustering("tight")), nullptr);
   EXPECT_EQ(makeClustering("Tight"), nullptr);
@@ -307,17 +324,8 @@ TEST(TightClustering, ExactDetectionEqualsBruteForce) {
         const auto set = std::make_shared<const ClodSphereSet>(builder.build(d));
         for (const FastLevel fast : {FastLevel::Grid, FastLevel::Hierarchy}) {
           const ClodDetector detector(mesh, set, fast, r);
-          std::size_t mismatches = 0, contacts = 0;
-          ContactResult out;
-          for (std::size_t i = 0; i < probes.size(); ++i) {
-            const ContactResult& ref = reference[i];
-            if (std::abs(ref.distance - r) <= 1e-9 * r) continue;  // on the boundary: either answer is right
-            detector.query(probes[i], r, DetectionMode::Exact, out);
-            contacts += ref.contact;
-            if (out.contact != ref.contact || (ref.contact && std::abs(out.distance - ref.distance) > 1e-9 * r))
-              ++mismatches;
-          }
-          EXPECT_EQ(mismatches, 0u) << name << " d=" << d << " r=" << r;
+          std::size_t contacts = 0;
+          EXPECT_EQ(mismatches(detector, probes, reference, r, contacts), 0u) << name << " d=" << d << " r=" << r;
           EXPECT_GT(contacts, 0u) << name;
         }
       }
@@ -339,8 +347,11 @@ TEST(TightClustering, LongTrianglesAreSplitOverSmallerSpheres) {
     const std::vector<Vec3> uniform = uniformProbes(*mesh, 300, 0.03, 32);
     probes.insert(probes.end(), uniform.begin(), uniform.end());
     const double r = 0.005;
-    std::vector<ContactResult> reference(probes.size());
-    for (std::size_t i = 0; i < probes.size(); ++i) reference[i] = bruteForceQuery(*mesh, probes[i], r);
+    std::vector<ContactResult> reference(probes.size()), referenceFar(probes.size());
+    for (std::size_t i = 0; i < probes.size(); ++i) {
+      reference[i] = bruteForceQuery(*mesh, probes[i], r);
+      referenceFar[i] = bruteForceQuery(*mesh, probes[i], 3 * r);
+    }
     for (double d : {0.0, 0.005, 0.01, 0.02}) {
       SCOPED_TRACE(mesh->name + " d=" + std::to_string(d));
       const auto set = std::make_shared<const ClodSphereSet>(split.build(d));
@@ -359,22 +370,11 @@ TEST(TightClustering, LongTrianglesAreSplitOverSmallerSpheres) {
       }
       for (const FastLevel fast : {FastLevel::Flat, FastLevel::Hierarchy, FastLevel::Grid}) {
         const ClodDetector detector(mesh, set, fast, r);
-        std::size_t mismatches = 0, contacts = 0;
-        ContactResult out;
-        for (std::size_t i = 0; i < probes.size(); ++i) {
-          const ContactResult& ref = reference[i];
-          if (std::abs(ref.distance - r) <= 1e-9 * r) continue;  // on the boundary: either answer is right
-          detector.query(probes[i], r, DetectionMode::Exact, out);
-          contacts += ref.contact;
-          if (out.contact != ref.contact || (ref.contact && std::abs(out.distance - ref.distance) > 1e-9 * r))
-            ++mismatches;
-          // Through the spheres alone (the grid's radius is r: a larger pointer goes through the levels' trees).
-          detector.query(probes[i], 3 * r, DetectionMode::Exact, out);
-          const ContactResult far = bruteForceQuery(*mesh, probes[i], 3 * r);
-          if (out.contact != far.contact || (far.contact && std::abs(out.distance - far.distance) > 1e-9 * r))
-            ++mismatches;
-        }
-        EXPECT_EQ(mismatches, 0u) << "fast level " << static_cast<int>(fast);
+        std::size_t contacts = 0, farContacts = 0;
+        EXPECT_EQ(mismatches(detector, probes, reference, r, contacts), 0u) << "fast level " << static_cast<int>(fast);
+        // Through the spheres alone (the grid's radius is r: a larger pointer goes through the levels' trees).
+        EXPECT_EQ(mismatches(detector, probes, referenceFar, 3 * r, farContacts), 0u)
+            << "fast level " << static_cast<int>(fast) << ", pointer 3r";
         EXPECT_GT(contacts, 0u);
       }
     }
