@@ -475,12 +475,17 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
   fitRadii();
   // Candidates, once: the open spheres that hold the item at the first radii, and its own. Radii only shrink, so
   // no other sphere can hold it in a later round. Per thread, its own run of items.
-  std::vector<Eigen::AlignedBox3d> balls(k);
-  for (std::size_t c = 0; c < k; ++c)
-    balls[c] = Eigen::AlignedBox3d(centres[c] - Vec3::Constant(radius[c]), centres[c] + Vec3::Constant(radius[c]));
+  std::vector<Eigen::AlignedBox3d> balls;
+  std::vector<std::uint32_t> sphereOf;  // the open spheres, in the tree's item order
+  for (std::size_t c = 0; c < k; ++c) {
+    if (!open[c]) continue;
+    balls.emplace_back(centres[c] - Vec3::Constant(radius[c]), centres[c] + Vec3::Constant(radius[c]));
+    sphereOf.push_back(static_cast<std::uint32_t>(c));
+  }
   std::vector<BoxNode> nodes;
   std::vector<std::uint32_t> order;
   if (buildBoxTree(balls, 4, 0.0, nodes, order) == kNone) return radius;
+  for (std::uint32_t& j : order) j = sphereOf[j];
   const unsigned threads = detail::threadsFor(n, 0, 4096);
   std::vector<std::vector<std::uint32_t>> candidates(threads), starts(threads);
   detail::runParallel(threads, [&](unsigned t) {
@@ -503,7 +508,7 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
         }
         for (std::uint32_t j = node.first; j < node.first + node.count; ++j) {
           const std::uint32_t s = order[j];
-          if (!open[s] || (p - centres[s]).squaredNorm() > far2[s]) continue;  // nor the item then
+          if ((p - centres[s]).squaredNorm() > far2[s]) continue;  // nor the item then
           if (farthest2(corners, centres[s]) <= far2[s]) list.push_back(s);
         }
       }

@@ -132,7 +132,9 @@ TEST(MeshBoxTree, StaleTreeIsNotUsed) {
     detector.query(p, r, DetectionMode::Exact, got);
     const ContactResult want = bruteForceQuery(*mesh, p, r);
     ASSERT_EQ(got.contact, want.contact) << p.transpose();
-    if (want.contact) EXPECT_NEAR(got.distance, want.distance, 1e-12) << p.transpose();
+    if (want.contact) {
+      EXPECT_NEAR(got.distance, want.distance, 1e-12) << p.transpose();
+    }
   }
 }
 
@@ -156,12 +158,16 @@ TEST(MeshBoxTree, CachedMeshSharesItsTree) {
     detector->query(p, r, DetectionMode::Exact, got);
     const ContactResult want = bruteForceQuery(*mesh, p, r);
     ASSERT_EQ(got.contact, want.contact) << p.transpose();
-    if (want.contact) EXPECT_NEAR(got.distance, want.distance, 1e-12) << p.transpose();
+    if (want.contact) {
+      EXPECT_NEAR(got.distance, want.distance, 1e-12) << p.transpose();
+    }
     SweptContact s;
     swept.sweep(p, p + Vec3(0.3 * r, -0.2 * r, 0.1 * r), r, s);
     const SweptContact ref = bruteForceSweep(*mesh, p, p + Vec3(0.3 * r, -0.2 * r, 0.1 * r), r);
     ASSERT_EQ(s.hit, ref.hit) << p.transpose();
-    if (ref.hit) EXPECT_EQ(s.toi, ref.toi) << p.transpose();
+    if (ref.hit) {
+      EXPECT_EQ(s.toi, ref.toi) << p.transpose();
+    }
   }
 }
 

@@ -43,7 +43,7 @@ namespace clod_haptics {
  * nothing is dropped, and a smaller radius about the same centre only lowers the cap and the volume outside, so
  * every bound above still holds. A triangle at the edge of a large patch that a neighbour already holds stops
  * setting the large sphere's radius: on the shared meshes at 150 and 500 spheres this lowers the outside volume
- * by 10 to 40% (bench/results/thin_tightness.md).
+ * by 10 to 50% (bench/results/thin_tightness.md).
  *
  * Every radius reaches every corner of every triangle or piece its sphere holds, so coverage holds whatever the
  * centres are: every point of every triangle lies in a sphere listing it (the invariant the detector relies on,
@@ -66,7 +66,7 @@ namespace clod_haptics {
 class TightClustering : public Clustering {
  public:
   /** \brief The default longest edge of a piece, relative to the mesh's diagonal. */
-  static constexpr double kDefaultPieceEdge = 1.0 / 32.0;
+  static constexpr double kDefaultPieceEdge = 1.0 / 64.0;
 
   /**
    * \brief pieceEdge: a triangle with an edge longer than pieceEdge times the mesh's diagonal is split into pieces

@@ -17,7 +17,9 @@ inline std::string installedShare() {
   const std::string share = ros::package::getPath("clod_haptics");
   const char* prefix = std::getenv("CLOD_INSTALL_PREFIX");
   EXPECT_TRUE(prefix != nullptr) << "CLOD_INSTALL_PREFIX is not set";
-  if (prefix != nullptr) EXPECT_EQ(share, std::string(prefix) + "/share/clod_haptics");
+  if (prefix != nullptr) {
+    EXPECT_EQ(share, std::string(prefix) + "/share/clod_haptics");
+  }
   return share;
 }
 
