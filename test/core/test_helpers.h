@@ -134,13 +134,17 @@ inline std::vector<std::string> coverageProblems(const TriangleMesh& mesh, const
     for (std::uint32_t i : listing[t]) smallest = std::min(smallest, set.radii[i]);
     const int steps = static_cast<int>(std::min(1024.0, std::max(8.0, std::ceil(4.0 * longest / smallest))));
     bool all = true;
+    std::size_t last = 0;  // the listing sphere that held the previous sample, tried first
     for (int i = 0; i <= steps && all; ++i)
       for (int j = 0; i + j <= steps && all; ++j) {
         const double u = double(i) / steps, w = double(j) / steps;
         const Vec3 p = (1 - u - w) * a + u * b + w * c;
-        bool inside = false;
-        for (std::uint32_t s : listing[t])
-          inside = inside || (p - set.centres[s]).norm() <= set.radii[s] * (1.0 + relTol) + relTol * size;
+        auto holds = [&](std::uint32_t s) {
+          return (p - set.centres[s]).norm() <= set.radii[s] * (1.0 + relTol) + relTol * size;
+        };
+        bool inside = holds(listing[t][last]);
+        for (std::size_t k = 0; k < listing[t].size() && !inside; ++k)
+          if (holds(listing[t][k])) inside = true, last = k;
         all = inside;
       }
     covered[t] = all ? 1 : 0;
