@@ -61,6 +61,59 @@ std::uint32_t splitAtMean(std::vector<std::uint32_t>& items, std::uint32_t begin
   return mid;
 }
 
+// Splits items[begin, end) in two at the mean of their keys along the one of the keys' three principal axes that
+// leaves the children most compact: the least of the two children's largest squared distance of a key from the
+// child's mean (ties to the principal axis, the one of largest variance). A thin cylinder's ring is thus cut
+// along the cylinder, where the principal axis alone turns across it once the ring is shorter than its girth.
+// Returns the first index of the second half, strictly inside (begin, end) for end - begin >= 2. Depends only on
+// the items and their keys, never on d.
+std::uint32_t splitCompact(std::vector<std::uint32_t>& items, std::uint32_t begin, std::uint32_t end,
+                           const std::vector<Vec3>& key) {
+  Vec3 mean = Vec3::Zero();
+  for (std::uint32_t i = begin; i < end; ++i) mean += key[items[i]];
+  mean /= static_cast<double>(end - begin);
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (std::uint32_t i = begin; i < end; ++i) {
+    const Vec3 v = key[items[i]] - mean;
+    cov.noalias() += v * v.transpose();
+  }
+  std::uint32_t mid = begin;
+  if (cov.allFinite() && cov.trace() > 0.0) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(cov);
+    Vec3 bestAxis = eigen.eigenvectors().col(2);
+    double bestSpread = std::numeric_limits<double>::infinity();
+    for (int a = 2; a >= 0; --a) {  // largest eigenvalue first, so ties keep it
+      const Vec3 axis = eigen.eigenvectors().col(a);
+      const double cut = axis.dot(mean);
+      Vec3 sum[2] = {Vec3::Zero(), Vec3::Zero()};
+      std::uint32_t count[2] = {0, 0};
+      for (std::uint32_t i = begin; i < end; ++i) {
+        const int side = axis.dot(key[items[i]]) < cut ? 0 : 1;
+        sum[side] += key[items[i]];
+        ++count[side];
+      }
+      if (count[0] == 0 || count[1] == 0) continue;
+      const Vec3 centre[2] = {sum[0] / count[0], sum[1] / count[1]};
+      double spread = 0.0;
+      for (std::uint32_t i = begin; i < end; ++i) {
+        const int side = axis.dot(key[items[i]]) < cut ? 0 : 1;
+        spread = std::max(spread, (key[items[i]] - centre[side]).squaredNorm());
+      }
+      if (spread < bestSpread) {
+        bestSpread = spread;
+        bestAxis = axis;
+      }
+    }
+    const double cut = bestAxis.dot(mean);
+    mid = static_cast<std::uint32_t>(std::partition(items.begin() + begin, items.begin() + end,
+                                                    [&](std::uint32_t t) { return bestAxis.dot(key[t]) < cut; }) -
+                                     items.begin());
+  }
+  // Coincident keys (or rounding) put everything on one side: halve by position instead.
+  if (mid == begin || mid == end) mid = begin + (end - begin) / 2;
+  return mid;
+}
+
 // Labels of the points from the cluster of each item, renumbered in the order of each cluster's
 // first point (the Clustering contract).
 std::uint32_t labelPoints(const std::vector<std::uint32_t>& clusterOfItem,
@@ -382,7 +435,7 @@ class PatchTree {
   // Whether node r is a leaf (with its centre); if not, it is split and mid is where its second half starts.
   bool isLeaf(Range r, Vec3& centre, bool& passed, std::uint32_t& mid) {
     if (judge_.evaluate(r, centre, passed)) return true;
-    mid = splitAtMean(order_, r.begin, r.end, items_.centroid);
+    mid = splitCompact(order_, r.begin, r.end, items_.centroid);
     return false;
   }
 
@@ -455,9 +508,9 @@ inline double farthest2(const TrianglePiece& corners, const Vec3& c) {
 // Hands each item to the sphere it lies deepest in, keeping the centres: an item goes to the sphere s that
 // holds all its corners (at the current radii) with the most room, max over corners |corner - c_s| - R_s least,
 // among its own and those whose excess passed the judge (open: not a single item kept whatever its excess, which
-// stays with what it wraps); its own is one of them, so no sphere grows. Each radius then shrinks to its items' farthest corner:
-// an item at the edge of a large patch that a neighbouring sphere already holds stops setting that sphere's
-// radius. A smaller radius about the same centre only lowers the sphere's cap and its volume outside, so the
+// stays with what it wraps); its own is one of them, so no sphere grows. Each radius then shrinks to its items'
+// farthest corner: an item at the edge of a large patch that a neighbouring sphere already holds stops setting that
+// sphere's radius. A smaller radius about the same centre only lowers the sphere's cap and its volume outside, so the
 // judge's bound still holds. Up to 8 rounds (until no item moves), each computed from the previous round's radii,
 // so the result does not depend on the order of the items or the threads. cluster[item] in, out; returns the
 // radii (a sphere left without items gets -1).
@@ -572,7 +625,8 @@ std::uint32_t listLeaves(const std::vector<std::vector<Leaf>>& groups, const std
   for (const std::uint32_t c : cluster) ++begin[c + 1];
   for (std::size_t c = 0; c < leafCentres.size(); ++c) begin[c + 1] += begin[c];
   std::vector<std::uint32_t> next(begin.begin(), begin.end() - 1), renumber(leafCentres.size(), kNone);
-  for (std::size_t item = 0; item < cluster.size(); ++item) byCluster[next[cluster[item]]++] = static_cast<std::uint32_t>(item);
+  for (std::size_t item = 0; item < cluster.size(); ++item)
+    byCluster[next[cluster[item]]++] = static_cast<std::uint32_t>(item);
   lists = ClusterLists{};
   lists.offsets.push_back(0);
   centres.clear();

@@ -17,7 +17,9 @@ namespace clod_haptics {
  * Every triangle goes to exactly one cluster (the points that wrap it follow it), except a long one split into
  * pieces (below), which goes to every cluster holding one of its pieces. The clusters are the
  * leaves of a binary tree that does not depend on d: a node's triangles are split in two at the mean of
- * their centroids along the principal axis of those centroids. A node becomes a sphere when its
+ * their centroids along the one of the centroids' three principal axes that leaves the two children most compact
+ * (the least largest distance of a centroid from its child's mean), so that a thin cylinder is cut into rings
+ * rather than across them. A node becomes a sphere when its
  * excess is at most d^3: with R reaching every vertex of its triangles, rho the signed distance from
  * its centre to the mesh (SurfaceDistance) and h = R - rho the height of its cap beyond the tangent
  * plane at the nearest surface point, the excess h^2 (3R - h) / 4 is that cap's volume over 4/3 pi;
