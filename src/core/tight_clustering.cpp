@@ -34,11 +34,44 @@ std::vector<std::uint32_t> identity(std::size_t n) {
   return v;
 }
 
-// Splits items[begin, end) in two at the mean of their keys along the keys' principal axis; returns
-// the first index of the second half, always strictly inside (begin, end) for end - begin >= 2.
+// Of the three principal axes (eigenvectors of the keys' covariance, largest eigenvalue last), the one whose cut at
+// the mean leaves the halves most compact: the least of the two halves' largest squared distance of a key from the
+// half's mean (ties to the principal axis, the one of largest variance). A thin cylinder's ring is thus cut along
+// the cylinder, where the principal axis alone turns across it once the ring is shorter than its girth.
+Vec3 compactAxis(const std::vector<std::uint32_t>& items, std::uint32_t begin, std::uint32_t end,
+                 const std::vector<Vec3>& key, const Vec3& mean, const Eigen::Matrix3d& axes) {
+  Vec3 best = axes.col(2);
+  double bestSpread = std::numeric_limits<double>::infinity();
+  for (int a = 2; a >= 0; --a) {  // largest eigenvalue first, so ties keep it
+    const Vec3 axis = axes.col(a);
+    const double cut = axis.dot(mean);
+    Vec3 sum[2] = {Vec3::Zero(), Vec3::Zero()};
+    std::uint32_t count[2] = {0, 0};
+    for (std::uint32_t i = begin; i < end; ++i) {
+      const int side = axis.dot(key[items[i]]) < cut ? 0 : 1;
+      sum[side] += key[items[i]];
+      ++count[side];
+    }
+    if (count[0] == 0 || count[1] == 0) continue;
+    const Vec3 centre[2] = {sum[0] / count[0], sum[1] / count[1]};
+    double spread = 0.0;
+    for (std::uint32_t i = begin; i < end; ++i) {
+      const int side = axis.dot(key[items[i]]) < cut ? 0 : 1;
+      spread = std::max(spread, (key[items[i]] - centre[side]).squaredNorm());
+    }
+    if (spread < bestSpread) {
+      bestSpread = spread;
+      best = axis;
+    }
+  }
+  return best;
+}
+
+// Splits items[begin, end) in two at the mean of their keys along the keys' principal axis, or with compact along
+// compactAxis; returns the first index of the second half, always strictly inside (begin, end) for end - begin >= 2.
 // Depends only on the items and their keys, never on d: the tree is the same for every d.
 std::uint32_t splitAtMean(std::vector<std::uint32_t>& items, std::uint32_t begin, std::uint32_t end,
-                          const std::vector<Vec3>& key) {
+                          const std::vector<Vec3>& key, bool compact) {
   Vec3 mean = Vec3::Zero();
   for (std::uint32_t i = begin; i < end; ++i) mean += key[items[i]];
   mean /= static_cast<double>(end - begin);
@@ -50,63 +83,11 @@ std::uint32_t splitAtMean(std::vector<std::uint32_t>& items, std::uint32_t begin
   std::uint32_t mid = begin;
   if (cov.allFinite() && cov.trace() > 0.0) {
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(cov);
-    const Vec3 axis = eigen.eigenvectors().col(2);  // largest eigenvalue last
+    const Vec3 axis = compact ? compactAxis(items, begin, end, key, mean, eigen.eigenvectors())
+                              : Vec3(eigen.eigenvectors().col(2));  // largest eigenvalue last
     const double cut = axis.dot(mean);
     mid = static_cast<std::uint32_t>(std::partition(items.begin() + begin, items.begin() + end,
                                                     [&](std::uint32_t t) { return axis.dot(key[t]) < cut; }) -
-                                     items.begin());
-  }
-  // Coincident keys (or rounding) put everything on one side: halve by position instead.
-  if (mid == begin || mid == end) mid = begin + (end - begin) / 2;
-  return mid;
-}
-
-// Splits items[begin, end) in two at the mean of their keys along the one of the keys' three principal axes that
-// leaves the children most compact: the least of the two children's largest squared distance of a key from the
-// child's mean (ties to the principal axis, the one of largest variance). A thin cylinder's ring is thus cut
-// along the cylinder, where the principal axis alone turns across it once the ring is shorter than its girth.
-// Returns the first index of the second half, strictly inside (begin, end) for end - begin >= 2. Depends only on
-// the items and their keys, never on d.
-std::uint32_t splitCompact(std::vector<std::uint32_t>& items, std::uint32_t begin, std::uint32_t end,
-                           const std::vector<Vec3>& key) {
-  Vec3 mean = Vec3::Zero();
-  for (std::uint32_t i = begin; i < end; ++i) mean += key[items[i]];
-  mean /= static_cast<double>(end - begin);
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (std::uint32_t i = begin; i < end; ++i) {
-    const Vec3 v = key[items[i]] - mean;
-    cov.noalias() += v * v.transpose();
-  }
-  std::uint32_t mid = begin;
-  if (cov.allFinite() && cov.trace() > 0.0) {
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(cov);
-    Vec3 bestAxis = eigen.eigenvectors().col(2);
-    double bestSpread = std::numeric_limits<double>::infinity();
-    for (int a = 2; a >= 0; --a) {  // largest eigenvalue first, so ties keep it
-      const Vec3 axis = eigen.eigenvectors().col(a);
-      const double cut = axis.dot(mean);
-      Vec3 sum[2] = {Vec3::Zero(), Vec3::Zero()};
-      std::uint32_t count[2] = {0, 0};
-      for (std::uint32_t i = begin; i < end; ++i) {
-        const int side = axis.dot(key[items[i]]) < cut ? 0 : 1;
-        sum[side] += key[items[i]];
-        ++count[side];
-      }
-      if (count[0] == 0 || count[1] == 0) continue;
-      const Vec3 centre[2] = {sum[0] / count[0], sum[1] / count[1]};
-      double spread = 0.0;
-      for (std::uint32_t i = begin; i < end; ++i) {
-        const int side = axis.dot(key[items[i]]) < cut ? 0 : 1;
-        spread = std::max(spread, (key[items[i]] - centre[side]).squaredNorm());
-      }
-      if (spread < bestSpread) {
-        bestSpread = spread;
-        bestAxis = axis;
-      }
-    }
-    const double cut = bestAxis.dot(mean);
-    mid = static_cast<std::uint32_t>(std::partition(items.begin() + begin, items.begin() + end,
-                                                    [&](std::uint32_t t) { return bestAxis.dot(key[t]) < cut; }) -
                                      items.begin());
   }
   // Coincident keys (or rounding) put everything on one side: halve by position instead.
@@ -435,7 +416,7 @@ class PatchTree {
   // Whether node r is a leaf (with its centre); if not, it is split and mid is where its second half starts.
   bool isLeaf(Range r, Vec3& centre, bool& passed, std::uint32_t& mid) {
     if (judge_.evaluate(r, centre, passed)) return true;
-    mid = splitCompact(order_, r.begin, r.end, items_.centroid);
+    mid = splitAtMean(order_, r.begin, r.end, items_.centroid, true);
     return false;
   }
 
@@ -786,7 +767,7 @@ std::uint32_t TightClustering::cluster(const std::vector<Vec3>& points, double d
       ++clusters;
       continue;
     }
-    const std::uint32_t mid = splitAtMean(items, r.begin, r.end, points);
+    const std::uint32_t mid = splitAtMean(items, r.begin, r.end, points, false);
     stack.push_back({mid, r.end});
     stack.push_back({r.begin, mid});
   }

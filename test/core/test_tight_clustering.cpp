@@ -402,15 +402,19 @@ TEST(TightClustering, RepeatedAndConcurrentBuildsAgree) {
   }
 }
 
+// The paper's placement as clusterMesh takes it: the points, and the triangle each wraps.
+void placePoints(const TriangleMesh& mesh, std::vector<Vec3>& points, std::vector<std::uint32_t>& wrapped) {
+  for (const auto& p : PaperPlacement().place(mesh, nullptr)) {
+    points.push_back(p.centre);
+    wrapped.push_back(p.triangle);
+  }
+}
+
 TEST(TightClustering, LabelsFollowTrianglesAndAreNumberedInOrder) {
   const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh("elephant.off"));
-  const auto placed = PaperPlacement().place(*mesh, nullptr);
   std::vector<Vec3> points;
   std::vector<std::uint32_t> wrapped;
-  for (const auto& s : placed) {
-    points.push_back(s.centre);
-    wrapped.push_back(s.triangle);
-  }
+  placePoints(*mesh, points, wrapped);
   std::vector<std::uint32_t> labels;
   std::vector<Vec3> centres;
   const std::uint32_t k = TightClustering().clusterMesh(*mesh, points, wrapped, 0.03, labels, centres, nullptr);
@@ -435,13 +439,9 @@ TEST(TightClustering, HandingOverShrinksSpheresAndGrowsNone) {
   // second is a leaf of the first (the same centre) with a radius no larger, and the spheres' total volume falls.
   for (const std::string name : {"head.off", "elephant.off", "mannequin-devil.off"}) {
     const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
-    const auto placed = PaperPlacement().place(*mesh, nullptr);
     std::vector<Vec3> points;
     std::vector<std::uint32_t> wrapped;
-    for (const auto& p : placed) {
-      points.push_back(p.centre);
-      wrapped.push_back(p.triangle);
-    }
+    placePoints(*mesh, points, wrapped);
     const auto whole = std::make_shared<TightClustering>(0.0);  // no pieces: the leaves hold whole triangles
     const ClodBuilder builder(mesh, std::make_shared<PaperPlacement>(), whole);
     for (double d : {0.02, 0.05}) {
