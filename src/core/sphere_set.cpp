@@ -345,6 +345,9 @@ std::string fitProblem(const TriangleMesh& mesh, const ClodSphereSet& set, doubl
   auto holds = [&](std::size_t sphere, const Vec3& p) {
     return (p - set.centres[sphere]).norm() <= set.radii[sphere] * (1.0 + 1e-9) + tolerance;
   };
+  auto holdsAll = [&](std::size_t sphere, const Vec3& a, const Vec3& b, const Vec3& c) {
+    return holds(sphere, a) && holds(sphere, b) && holds(sphere, c);
+  };
   // Per triangle: listed by no sphere, whole in a sphere listing it, or listed but whole in none (a split triangle,
   // with the sphere that first listed it).
   enum : char { kUnlisted, kWhole, kPartial };
@@ -361,7 +364,7 @@ std::string fitProblem(const TriangleMesh& mesh, const ClodSphereSet& set, doubl
                std::to_string(mesh.size());
       }
       if (state[t] == kWhole) continue;
-      if (holds(i, mesh.vertex(t, 0)) && holds(i, mesh.vertex(t, 1)) && holds(i, mesh.vertex(t, 2))) {
+      if (holdsAll(i, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2))) {
         state[t] = kWhole;
       } else if (state[t] == kUnlisted) {
         state[t] = kPartial;
@@ -385,7 +388,7 @@ std::string fitProblem(const TriangleMesh& mesh, const ClodSphereSet& set, doubl
       const TrianglePiece whole{mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2)};
       const bool covered = coveredByPieces(whole, kMaxPieceDepth, [&](const TrianglePiece& piece) {
         for (std::uint32_t j = begin[t]; j < begin[t + 1]; ++j)
-          if (holds(listing[j], piece[0]) && holds(listing[j], piece[1]) && holds(listing[j], piece[2])) return true;
+          if (holdsAll(listing[j], piece[0], piece[1], piece[2])) return true;
         return false;
       });
       if (!covered) {

@@ -494,7 +494,7 @@ inline double farthest2(const TrianglePiece& corners, const Vec3& c) {
 // sphere's radius. A smaller radius about the same centre only lowers the sphere's cap and its volume outside, so the
 // judge's bound still holds. Up to 8 rounds (until no item moves), each computed from the previous round's radii,
 // so the result does not depend on the order of the items or the threads. cluster[item] in, out; returns the
-// radii (a sphere left without items gets -1).
+// radii (0 for a sphere left without items).
 std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::vector<Vec3>& centres,
                                         const std::vector<char>& open, std::vector<std::uint32_t>& cluster) {
   constexpr int kRounds = 8;
@@ -574,9 +574,7 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
     if (std::find(moved.begin(), moved.end(), 1) == moved.end()) break;
     fitRadii();
   }
-  std::vector<double> radii(k, -1.0);
-  for (std::size_t item = 0; item < n; ++item) radii[cluster[item]] = radius[cluster[item]];
-  return radii;
+  return radius;
 }
 
 // The leaves as spheres fitted here (a split triangle's pieces may sit in several leaves): in the order of the
