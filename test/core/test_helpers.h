@@ -83,6 +83,43 @@ inline std::shared_ptr<const TriangleMesh> loadNormalized(const std::string& pat
 }
 
 /**
+ * \brief Steps per edge of the barycentric grid that samples triangle t against the spheres `listing`: 4 per smallest
+ * listing radius along the longest edge, at least 8 and at most maxSteps.
+ */
+inline int samplingSteps(const TriangleMesh& mesh, const ClodSphereSet& set, std::size_t t,
+                         const std::vector<std::uint32_t>& listing, double maxSteps) {
+  const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
+  const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+  double smallest = std::numeric_limits<double>::infinity();
+  for (std::uint32_t i : listing) smallest = std::min(smallest, set.radii[i]);
+  return static_cast<int>(std::clamp(std::ceil(4.0 * longest / smallest), 8.0, maxSteps));
+}
+
+/**
+ * \brief The points of a barycentric grid of `steps` per edge on triangle t (corners and edges included) that lie in
+ * none of the spheres `listing`, each taken to reach radius * (1 + relTol) + absTol. The sphere that held the
+ * previous point is tried first: neighbouring points mostly share one.
+ */
+inline std::size_t missedSamples(const TriangleMesh& mesh, const ClodSphereSet& set, std::size_t t,
+                                 const std::vector<std::uint32_t>& listing, int steps, double relTol, double absTol) {
+  const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
+  std::size_t misses = 0, last = 0;
+  for (int i = 0; i <= steps; ++i)
+    for (int j = 0; i + j <= steps; ++j) {
+      const double u = double(i) / steps, w = double(j) / steps;
+      const Vec3 p = (1 - u - w) * a + u * b + w * c;
+      auto holds = [&](std::size_t k) {
+        return (p - set.centres[listing[k]]).norm() <= set.radii[listing[k]] * (1.0 + relTol) + absTol;
+      };
+      bool inside = last < listing.size() && holds(last);
+      for (std::size_t k = 0; k < listing.size() && !inside; ++k)
+        if (holds(k)) inside = true, last = k;
+      misses += !inside;
+    }
+  return misses;
+}
+
+/**
  * \brief Checks the coverage invariant from its definition: every point of every triangle lies within the radius
  * (times 1 + relTol, plus relTol of the model size) of a sphere that lists the triangle. A triangle passes at once
  * when one listing sphere holds its three vertices; a triangle split over several spheres is sampled instead, on a
@@ -118,8 +155,11 @@ inline std::vector<std::string> coverageProblems(const TriangleMesh& mesh, const
       }
       bool inside = true;
       for (int k = 0; k < 3; ++k) inside = inside && (mesh.vertex(*t, k) - set.centres[i]).norm() <= reach;
-      if (inside) covered[*t] = 1;
-      else if (!covered[*t]) covered[*t] = 2;  // listed, not whole in this sphere
+      if (inside) {
+        covered[*t] = 1;
+      } else if (!covered[*t]) {
+        covered[*t] = 2;  // listed, not whole in this sphere
+      }
     }
   }
   std::vector<std::vector<std::uint32_t>> listing(mesh.size());
@@ -128,26 +168,8 @@ inline std::vector<std::string> coverageProblems(const TriangleMesh& mesh, const
       if (*t < mesh.size() && covered[*t] == 2) listing[*t].push_back(static_cast<std::uint32_t>(i));
   for (std::size_t t = 0; t < mesh.size(); ++t) {
     if (covered[t] != 2) continue;
-    const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
-    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-    double smallest = std::numeric_limits<double>::infinity();
-    for (std::uint32_t i : listing[t]) smallest = std::min(smallest, set.radii[i]);
-    const int steps = static_cast<int>(std::min(1024.0, std::max(8.0, std::ceil(4.0 * longest / smallest))));
-    bool all = true;
-    std::size_t last = 0;  // the listing sphere that held the previous sample, tried first
-    for (int i = 0; i <= steps && all; ++i)
-      for (int j = 0; i + j <= steps && all; ++j) {
-        const double u = double(i) / steps, w = double(j) / steps;
-        const Vec3 p = (1 - u - w) * a + u * b + w * c;
-        auto holds = [&](std::uint32_t s) {
-          return (p - set.centres[s]).norm() <= set.radii[s] * (1.0 + relTol) + relTol * size;
-        };
-        bool inside = holds(listing[t][last]);
-        for (std::size_t k = 0; k < listing[t].size() && !inside; ++k)
-          if (holds(listing[t][k])) inside = true, last = k;
-        all = inside;
-      }
-    covered[t] = all ? 1 : 0;
+    const int steps = samplingSteps(mesh, set, t, listing[t], 1024.0);
+    covered[t] = missedSamples(mesh, set, t, listing[t], steps, relTol, relTol * size) == 0 ? 1 : 0;
   }
   for (std::size_t t = 0; t < mesh.size(); ++t)
     if (!covered[t]) report("triangle " + std::to_string(t) + " is inside no sphere that lists it");

@@ -245,26 +245,9 @@ std::size_t uncoveredSamples(const TriangleMesh& mesh, const ClodSphereSet& set)
     for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t)
       listing[*t].push_back(static_cast<std::uint32_t>(i));
   std::size_t misses = 0;
-  for (std::size_t t = 0; t < mesh.size(); ++t) {
-    const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
-    double smallest = std::numeric_limits<double>::infinity();
-    for (std::uint32_t s : listing[t]) smallest = std::min(smallest, set.radii[s]);
-    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-    const int kSteps = static_cast<int>(std::clamp(std::ceil(4.0 * longest / smallest), 8.0, 512.0));
-    constexpr std::uint32_t kNoSphere = std::numeric_limits<std::uint32_t>::max();
-    std::uint32_t last = kNoSphere;
-    for (int i = 0; i <= kSteps; ++i)
-      for (int j = 0; i + j <= kSteps; ++j) {
-        const double u = double(i) / kSteps, w = double(j) / kSteps;
-        const Vec3 p = (1 - u - w) * a + u * b + w * c;
-        // The sphere that held the previous sample first: neighbouring samples mostly share one.
-        auto holds = [&](std::uint32_t s) { return (p - set.centres[s]).norm() <= set.radii[s] * (1 + 1e-9) + 1e-12; };
-        bool inside = last != kNoSphere && holds(last);
-        for (std::size_t j = 0; j < listing[t].size() && !inside; ++j)
-          if (holds(listing[t][j])) inside = true, last = listing[t][j];
-        misses += !inside;
-      }
-  }
+  for (std::size_t t = 0; t < mesh.size(); ++t)
+    misses += clod_test::missedSamples(mesh, set, t, listing[t],
+                                       clod_test::samplingSteps(mesh, set, t, listing[t], 512.0), 1e-9, 1e-12);
   return misses;
 }
 
