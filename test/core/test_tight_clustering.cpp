@@ -511,6 +511,9 @@ TEST(TightClustering, BadInputThrowsInvalidParameter) {
   EXPECT_EQ(clustering.clusterMesh(*mesh, {}, {}, 0.1, labels, centres, nullptr), 0u);
   const ClodBuilder builder(mesh, std::make_shared<PaperPlacement>(), makeClustering("tight"));
   EXPECT_THROW(builder.build(-1.0), InvalidParameter);
+  // The piece edge: negative, NaN or infinite is refused when the strategy is made.
+  for (double edge : {-0.01, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()})
+    EXPECT_THROW(TightClustering{edge}, InvalidParameter) << edge;
 }
 
 TEST(SurfaceDistance, MatchesBruteForce) {
