@@ -21,6 +21,15 @@ double squaredDistanceToSegment(const Vec3& c, const Vec3& a, const Vec3& b) {
   return (c - closestPointOnSegment(c, a, b)).squaredNorm();
 }
 
+// An object's answer in the world frame.
+SweptContact toWorld(const Eigen::Isometry3d& worldFromObject, const SweptContact& c) {
+  SweptContact out = c;
+  out.centre = worldFromObject * c.centre;
+  out.point = worldFromObject * c.point;
+  out.normal = worldFromObject.linear() * c.normal;
+  return out;
+}
+
 }  // namespace
 
 std::uint32_t SweptScene::add(std::shared_ptr<const SweptSphereQuery> query, const Eigen::Isometry3d& worldFromObject) {
@@ -57,9 +66,22 @@ void SweptScene::updateBound(Object& o) {
   o.boundRadius = 0.5 * box.diagonal().norm() * (1.0 + 1e-9) + 1e-9 * o.boundCentre.cwiseAbs().maxCoeff();
 }
 
+bool SweptScene::blocksAtStart(std::int32_t object, std::int32_t triangle, const Vec3& a, const Vec3& b, double r,
+                               SceneSweptContact& out) const noexcept {
+  if (object < 0 || static_cast<std::size_t>(object) >= objects_.size()) return false;
+  const Object& o = objects_[static_cast<std::size_t>(object)];
+  SweptContact c;
+  if (!o.active || !o.query->blocksAtStart(triangle, o.objectFromWorld * a, o.objectFromWorld * b, r, c)) return false;
+  out.contact = toWorld(o.worldFromObject, c);
+  out.object = object;
+  return true;
+}
+
 void SweptScene::sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact& out, std::int32_t hintObject,
                        std::int32_t hintTriangle) const noexcept {
   out = SceneSweptContact{};
+  // Blocked at 0 by the hinted triangle: that is the answer (SweptSphereQuery's tie rule, across objects too).
+  if (blocksAtStart(hintObject, hintTriangle, a, b, r, out)) return;
   SweptContact c;
   for (std::size_t i = 0; i < objects_.size(); ++i) {
     const Object& o = objects_[i];
@@ -71,11 +93,8 @@ void SweptScene::sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact
     out.contact.trianglesTested += c.trianglesTested;
     if (!c.hit || (out.object >= 0 && !(c.toi < out.contact.toi))) continue;
     const std::uint32_t tested = out.contact.trianglesTested;
-    out.contact = c;
+    out.contact = toWorld(o.worldFromObject, c);
     out.contact.trianglesTested = tested;
-    out.contact.centre = o.worldFromObject * c.centre;
-    out.contact.point = o.worldFromObject * c.point;
-    out.contact.normal = o.worldFromObject.linear() * c.normal;
     out.object = static_cast<std::int32_t>(i);
   }
 }

@@ -193,6 +193,53 @@ TEST(SweptSphereQuery, AnswerFieldsOnAPlate) {
   EXPECT_FALSE(c.hit);
 }
 
+// A sphere resting on the diagonal of a two-triangle plate and pressed into it is blocked at 0 by both: the
+// lowest index wins, unless the hint is the other one (a proxy passes its last contact). A hint that does not
+// block at 0 (a triangle far away, or the plate when the sphere lifts) leaves the answer to the index rule.
+TEST(SweptSphereQuery, AHintBlockingAtZeroWinsTheTie) {
+  auto mesh = std::make_shared<const TriangleMesh>(
+      makeMesh({{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}, {5, 5, 5}, {6, 5, 5}, {5, 6, 5}},
+               {{0, 1, 2}, {0, 2, 3}, {4, 5, 6}}, "plate and a far triangle"));
+  auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.1));
+  auto detector = std::make_shared<const ClodDetector>(mesh, set, FastLevel::Grid, 0.3);
+  const SweptSphereQuery withGrid(mesh, detector), treeOnly(mesh);
+  const double r = 0.25;
+  const Vec3 a(0.2, 0.2, r);  // above the shared diagonal, touching both triangles
+  const Vec3 in = a + Vec3(0.01, -0.01, -0.1), up = a + Vec3(0.1, 0.0, 0.1);
+  struct Case {
+    Vec3 b;
+    std::int32_t hint, want;
+    double toi;
+  };
+  for (const Case& k :
+       {Case{in, -1, 0, 0.0}, Case{in, 1, 1, 0.0}, Case{in, 0, 0, 0.0}, Case{in, 2, 0, 0.0}, Case{up, 1, -1, 1.0}}) {
+    const SweptContact reference = bruteForceSweep(*mesh, a, k.b, r, k.hint);
+    EXPECT_EQ(reference.triangle, k.want) << "hint " << k.hint;
+    EXPECT_EQ(reference.hit, k.want >= 0);
+    if (k.want >= 0) {
+      EXPECT_EQ(reference.toi, k.toi);
+      EXPECT_TRUE(reference.startInContact);
+    }
+    for (const SweptSphereQuery* query : {&withGrid, &treeOnly}) {
+      SweptContact c;
+      query->sweep(a, k.b, r, c, k.hint);
+      EXPECT_EQ(c.hit, reference.hit) << "hint " << k.hint;
+      EXPECT_EQ(c.triangle, reference.triangle) << "hint " << k.hint;
+      EXPECT_EQ(c.toi, reference.toi);
+      EXPECT_EQ(c.normal, reference.normal);
+      // The same check alone: true exactly when the hint is the answer, with the answer's fields.
+      SweptContact held;
+      ASSERT_EQ(query->blocksAtStart(k.hint, a, k.b, r, held), k.hint >= 0 && k.want == k.hint) << "hint " << k.hint;
+      if (k.hint >= 0 && k.want == k.hint) {
+        EXPECT_EQ(held.triangle, reference.triangle);
+        EXPECT_EQ(held.point, reference.point);
+        EXPECT_EQ(held.normal, reference.normal);
+        EXPECT_TRUE(held.startInContact);
+      }
+    }
+  }
+}
+
 // Sweeps around a mesh: from points near the surface, in random directions, of lengths from a
 // hundredth of the radius to many cells, plus zero-length ones and ones aimed through the surface.
 struct Sweep {
@@ -218,11 +265,13 @@ void expectSameAsBruteForce(const TriangleMesh& mesh, const SweptSphereQuery& qu
   std::vector<SweptContact> got(sweeps.size()), want(sweeps.size());
   clod_test::parallelFor(sweeps.size(), 2, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) {
-      want[i] = bruteForceSweep(mesh, sweeps[i].a, sweeps[i].b, r);
-      // A hint (the answer's triangle, another one, or none) changes the work, never the answer.
+      const SweptContact plain = bruteForceSweep(mesh, sweeps[i].a, sweeps[i].b, r);
+      // A hint (the answer's triangle, another one, or none) changes the work; the answer only where the hint
+      // blocks at 0 too (it then wins the tie), the same for both.
       const std::int32_t hint = i % 3 == 0   ? -1
-                                : i % 3 == 1 ? want[i].triangle
+                                : i % 3 == 1 ? plain.triangle
                                              : static_cast<std::int32_t>(i % mesh.size());
+      want[i] = bruteForceSweep(mesh, sweeps[i].a, sweeps[i].b, r, hint);
       query.sweep(sweeps[i].a, sweeps[i].b, r, got[i], hint);
     }
   });

@@ -111,6 +111,34 @@ TEST(SweptScene, InactiveAndMovedObjects) {
   EXPECT_THROW(scene.add(nullptr, Eigen::Isometry3d::Identity()), InvalidParameter);
 }
 
+// Two plates on top of each other, the second turned: a sphere resting on both and pressed in is blocked at 0 by
+// both objects. The lowest object wins, unless the hint names a triangle of the other one that blocks at 0.
+TEST(SweptScene, AHintBlockingAtZeroWinsTheTieAcrossObjects) {
+  auto plate = std::make_shared<const TriangleMesh>(
+      makeMesh({{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}}, {{0, 1, 2}, {0, 2, 3}}, "plate"));
+  SweptScene scene;
+  scene.add(std::make_shared<const SweptSphereQuery>(plate), Eigen::Isometry3d::Identity());
+  scene.add(std::make_shared<const SweptSphereQuery>(plate), pose(0.5, Vec3::UnitZ(), Vec3::Zero()));
+  const Vec3 a(0.1, 0.3, 0.1), b = a + Vec3(0.05, 0.0, -0.05);
+  // Which triangle of the turned plate lies under a (the reference: its own brute force).
+  const SweptContact own = bruteForceSweep(moved(*plate, pose(0.5, Vec3::UnitZ(), Vec3::Zero())), a, b, 0.1);
+  ASSERT_TRUE(own.hit);
+  ASSERT_EQ(own.toi, 0.0);
+  SceneSweptContact c;
+  scene.sweep(a, b, 0.1, c);
+  EXPECT_EQ(c.object, 0);
+  scene.sweep(a, b, 0.1, c, 1, own.triangle);
+  EXPECT_EQ(c.object, 1);
+  EXPECT_EQ(c.contact.triangle, own.triangle);
+  EXPECT_EQ(c.contact.toi, 0.0);
+  EXPECT_NEAR((c.contact.normal - Vec3::UnitZ()).norm(), 0.0, 1e-12);
+  // A hint that does not block at 0 (the other triangle of the turned plate, or a lifting sphere): no change.
+  scene.sweep(a, b, 0.1, c, 1, 1 - own.triangle);
+  EXPECT_EQ(c.object, 0);
+  scene.sweep(a, a + Vec3(0.05, 0.0, 0.05), 0.1, c, 1, own.triangle);
+  EXPECT_FALSE(c.contact.hit);
+}
+
 }  // namespace
 
 // clearAt: where a proxy may start. Against brute force on the posed object (the bundled torus, closed, so inside

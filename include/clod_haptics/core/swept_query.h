@@ -18,7 +18,8 @@ namespace clod_haptics {
  * motion in one tick. Fields other than hit, toi and trianglesTested are meaningful only when hit is true.
  *
  * Contact means distance(centre, triangle) <= r. The answer is the smallest time of impact over the
- * triangles, ties to the lowest triangle index, with these rules (the same for every triangle):
+ * triangles, ties to the lowest triangle index (but see the hint of bruteForceSweep), with these rules (the same for
+ * every triangle):
  * - Moving sphere: the first t in [0, 1] at which the sphere touches a triangle it did not touch at t = 0.
  * - Start in contact (the sphere touches a triangle at a): t = 0 when the motion brings the centre closer to
  *   that triangle (or the centre lies on it, within 1e-9 r); a motion that keeps or grows the distance (sliding along
@@ -59,8 +60,10 @@ bool sweptSphereTriangle(const Vec3& a, const Vec3& d, double R, const Vec3& v0,
 /**
  * \brief The reference: every triangle of the mesh with sweptSphereTriangle, the smallest time of impact
  * (ties to the lowest index). a, b and the answer in the model frame. O(triangles); tests use it.
+ * hint: a triangle that wins a tie at toi = 0 when it blocks the sweep at 0 (any triangle that blocks at 0 is a
+ * first contact; a proxy resting on its last contact passes that one, and the search then ends at once). -1: none.
  */
-SweptContact bruteForceSweep(const TriangleMesh& mesh, const Vec3& a, const Vec3& b, double r);
+SweptContact bruteForceSweep(const TriangleMesh& mesh, const Vec3& a, const Vec3& b, double r, std::int32_t hint = -1);
 
 /**
  * \brief The accelerated swept-sphere query of one mesh: answers exactly what bruteForceSweep answers.
@@ -90,10 +93,19 @@ class SweptSphereQuery {
   /**
    * \brief The first contact of the sphere (radius r) moving a -> b (model frame), as bruteForceSweep.
    * Non-finite input or a radius outside [0, kMaxRadius] answers no hit. hint: a triangle likely to be the
-   * first contact (a proxy's last contact), tested first so that its time prunes the rest; the answer is
-   * the same with any hint.
+   * first contact (a proxy's last contact), tested first so that its time prunes the rest; when it blocks the
+   * sweep at toi = 0 it is the answer and nothing else is searched. The answer is bruteForceSweep's with the same
+   * hint.
    */
   void sweep(const Vec3& a, const Vec3& b, double r, SweptContact& out, std::int32_t hint = -1) const noexcept;
+
+  /**
+   * \brief Whether one triangle blocks the sweep at toi = 0 (the sphere touches it at a, and the motion does not
+   * keep away from it), with sweep's rules: then out is what sweep answers with that triangle as its hint, and true.
+   * Otherwise out is left as it was. A proxy wedged against several triangles checks its last constraints this way
+   * before it searches. Allocation-free, noexcept; false for a triangle out of range or non-finite input.
+   */
+  bool blocksAtStart(std::int32_t triangle, const Vec3& a, const Vec3& b, double r, SweptContact& out) const noexcept;
 
   /** \brief The mesh. */
   const std::shared_ptr<const TriangleMesh>& mesh() const { return mesh_; }

@@ -38,11 +38,20 @@ class SweptScene {
   void setActive(std::uint32_t i, bool active) { objects_[i].active = active; }
 
   /**
-   * \brief The first contact of the sphere (radius r) moving a -> b in the world frame, over all objects. hint:
-   * a likely first contact (object and triangle, as SweptSphereQuery::sweep's hint; -1: none).
+   * \brief The first contact of the sphere (radius r) moving a -> b in the world frame, over all objects, ties to
+   * the lowest object. hint: a likely first contact (object and triangle, as SweptSphereQuery::sweep's hint; -1:
+   * none); when that triangle blocks the sweep at toi = 0 it is the answer, whatever other objects touch.
    */
   void sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact& out, std::int32_t hintObject = -1,
              std::int32_t hintTriangle = -1) const noexcept;
+
+  /**
+   * \brief Whether triangle t of object i blocks the sweep (world frame) at toi = 0, as
+   * SweptSphereQuery::blocksAtStart; then out is what sweep answers with that hint, and true. False for an inactive
+   * or unknown object. A proxy checks its last constraints this way before it searches.
+   */
+  bool blocksAtStart(std::int32_t object, std::int32_t triangle, const Vec3& a, const Vec3& b, double r,
+                     SceneSweptContact& out) const noexcept;
 
   /**
    * \brief Whether a proxy of radius r may start at the world point p: it touches no active object, and lies
