@@ -12,21 +12,28 @@ constexpr int kIterations = 6;  // sweeps per solve: one free move, or up to thr
 
 }  // namespace
 
-/** The constraint planes of one solve (unit normals through the proxy) and where the first contact held it. */
+/**
+ * The constraint planes of one solve (unit normals through the proxy), the contacts that made them, and where the
+ * first contact held the proxy.
+ */
 struct HapticRenderer::Planes {
   Vec3 n[kMaxPlanes];
+  Hint by[kMaxPlanes];
   int count = 0;
   Vec3 anchor = Vec3::Zero();  // the proxy at the first contact of the solve
   /** Adds a plane unless one with the same normal is active; a fourth replaces the oldest. */
-  void add(const Vec3& normal) {
+  void add(const Vec3& normal, const Hint& contact) {
     for (int i = 0; i < count; ++i)
       if (n[i].dot(normal) > 1.0 - 1e-12) return;
     if (count == kMaxPlanes) {
-      n[0] = n[1];
-      n[1] = n[2];
+      for (int i = 0; i + 1 < kMaxPlanes; ++i) {
+        n[i] = n[i + 1];
+        by[i] = by[i + 1];
+      }
       count = kMaxPlanes - 1;
     }
-    n[count++] = normal;
+    n[count] = normal;
+    by[count++] = contact;
   }
 };
 
@@ -103,6 +110,7 @@ void HapticRenderer::reset(const Vec3& position) {
   proxy_ = lastProxy_ = lastDevice_ = position;
   started_ = true;
   sliding_ = false;
+  heldCount_ = 0;
 }
 
 Vec3 HapticRenderer::solve(const SweptScene& scene, const Vec3& from, const Vec3& target, Planes& planes,
@@ -118,9 +126,18 @@ Vec3 HapticRenderer::solve(const SweptScene& scene, const Vec3& from, const Vec3
   const double still = 16.0 * skin;
   for (int i = 0; i < kIterations; ++i) {
     if ((goal - p).squaredNorm() <= still * still) break;
-    scene.sweep(p, goal, r, hit, hint_.object, hint_.triangle);
+    // The last tick's constraints first: one that still blocks at 0 answers the sweep without a search (a proxy
+    // wedged in a crease meets the same two or three triangles every tick, each of them a search's worst case).
+    bool blocked = false;
+    for (int k = 0; k < heldCount_ && !blocked; ++k) {
+      const Hint& h = held_[k];
+      if (h.object == hint_.object && h.triangle == hint_.triangle) continue;  // the sweep checks that one
+      ++out.trianglesTested;
+      blocked = scene.blocksAtStart(h.object, h.triangle, p, goal, r, hit);
+    }
+    if (!blocked) scene.sweep(p, goal, r, hit, hint_.object, hint_.triangle);
     ++out.sweeps;
-    out.trianglesTested += hit.contact.trianglesTested;
+    out.trianglesTested += blocked ? 0 : hit.contact.trianglesTested;
     if (!hit.contact.hit) return goal;
     hint_ = {hit.object, hit.contact.triangle};
     p = p + hit.contact.toi * (goal - p);
@@ -132,7 +149,7 @@ Vec3 HapticRenderer::solve(const SweptScene& scene, const Vec3& from, const Vec3
       out.object = hit.object;
       out.triangle = hit.contact.triangle;
     }
-    planes.add(hit.contact.normal);
+    planes.add(hit.contact.normal, hint_);
     goal = constrain(target, p, planes.n, planes.count, skin);
   }
   return p;
@@ -186,6 +203,8 @@ void HapticRenderer::update(const SweptScene& scene, const Vec3& device, double 
   Planes planes;
   Vec3 p = solve(scene, proxy_, device, planes, out);
   out.planes = static_cast<std::uint32_t>(planes.count);
+  heldCount_ = planes.count;
+  std::copy(planes.by, planes.by + planes.count, held_);
   if (out.contact && parameters_.muStatic > 0.0) {
     Vec3 normal = Vec3::Zero();
     for (int i = 0; i < planes.count; ++i) normal += planes.n[i];

@@ -206,6 +206,50 @@ TEST(HapticRenderer, ProxySettlesInAGrooveAndAnInsideCorner) {
                        Vec3::Constant(kRadius), 0.05));
 }
 
+// Each quad cut into n x n smaller ones (the same surface, finely tessellated).
+std::shared_ptr<const TriangleMesh> finer(const std::vector<std::array<Vec3, 4>>& q, const std::vector<Vec3>& outside,
+                                          int n) {
+  std::vector<std::array<Vec3, 4>> fine;
+  std::vector<Vec3> out;
+  for (std::size_t k = 0; k < q.size(); ++k) {
+    const Vec3 u = (q[k][1] - q[k][0]) / n, v = (q[k][3] - q[k][0]) / n;
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        const Vec3 o = q[k][0] + u * i + v * j;
+        fine.push_back({o, o + u, o + u + v, o + v});
+        out.push_back(outside[k]);
+      }
+  }
+  return quads(fine, out);
+}
+
+// A proxy wedged into a finely tessellated inside corner (0.5 mm squares: about 60 triangles within reach of its
+// rest point) and held there meets the same three walls every tick: it answers them from the last tick's
+// constraints, so a tick tests a handful of triangles instead of searching the corner's cells three times. It
+// settles where the coarse corner settles.
+TEST(HapticRenderer, AWedgedProxyChecksItsLastConstraintsFirst) {
+  const double L = 0.02;
+  const auto corner = finer({{Vec3(0, 0, 0), Vec3(L, 0, 0), Vec3(L, L, 0), Vec3(0, L, 0)},
+                             {Vec3(0, 0, 0), Vec3(0, L, 0), Vec3(0, L, L), Vec3(0, 0, L)},
+                             {Vec3(0, 0, 0), Vec3(L, 0, 0), Vec3(L, 0, L), Vec3(0, 0, L)}},
+                            {Vec3::UnitZ(), Vec3::UnitX(), Vec3::UnitY()}, 40);
+  const SweptScene scene = sceneOf(corner);
+  HapticRenderer renderer(stylus());
+  ProxyTick tick;
+  const std::vector<Vec3> devicePath = path(Vec3(0.01, 0.012, 0.011), Vec3(-0.003, -0.002, -0.004), 0.05, 200);
+  std::uint32_t heldTests = 0, heldTicks = 0;
+  for (std::size_t i = 0; i < devicePath.size(); ++i) {
+    renderer.update(scene, devicePath[i], kDt, tick);
+    if (i + 100 >= devicePath.size()) {
+      heldTests += tick.trianglesTested;
+      ++heldTicks;
+      EXPECT_EQ(tick.planes, 3u);
+    }
+  }
+  EXPECT_LT((tick.proxy - Vec3::Constant(kRadius)).norm(), 1e-7);
+  EXPECT_LE(heldTests, 8u * heldTicks) << "triangles tested over the last " << heldTicks << " ticks";
+}
+
 // Several objects constrain the same proxy: the inside corner made of three separate boxes.
 TEST(HapticRenderer, SeveralObjectsMakeOneCorner) {
   SweptScene scene;

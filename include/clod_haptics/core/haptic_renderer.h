@@ -91,6 +91,8 @@ class HapticRenderer {
   struct Hint {
     std::int32_t object = -1, triangle = -1;
   } hint_;  // the last contact: tested first by the next sweep
+  Hint held_[3];       // the contacts that made the last tick's constraint planes
+  int heldCount_ = 0;  // how many of held_ are in use
 };
 
 }  // namespace clod_haptics
