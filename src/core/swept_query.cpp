@@ -382,41 +382,36 @@ void SweptSphereQuery::sweepGrid(const Vec3& a, const Vec3& d, double R, Best& b
   for (int k = 0; k < pieces; ++k) {
     const double t0 = static_cast<double>(k) / pieces, t1 = static_cast<double>(k + 1) / pieces;
     const Vec3 p0 = a + t0 * d, p1 = k + 1 == pieces ? Vec3(a + d) : Vec3(a + t1 * d);
-    // The cells the piece's box meets, up to the best time so far: recomputed when a contact shortens the piece.
-    std::int64_t lo[3], hi[3], start[3];
-    auto cellsOfPiece = [&]() {
-      const Vec3 end = best.toi >= t1 ? p1 : Vec3(a + std::max(t0, best.toi) * d);
-      grid.cellCoordinates(p0.cwiseMin(end) - Vec3::Constant(pad), lo);
-      grid.cellCoordinates(p0.cwiseMax(end) + Vec3::Constant(pad), hi);
-    };
-    // A cell is scanned for the part of the piece inside it (its box grown by pad), if any: a contact's centre
-    // lies in some cell, whose candidates reach every triangle within the grid radius of its points, and the
-    // bounds of the scan hold on that part alone (tighter than on the whole piece, and most of a piece's box
-    // of cells is off the piece).
-    auto visit = [&](std::uint64_t key) {
-      double c0 = t0, c1 = std::min(t1, best.toi);
-      if (!clipToBox(grid.centreOf(key) - Vec3::Constant(0.5 * h + pad), h + 2.0 * pad, a, d, c0, c1)) return;
-      sweepCell(key, c0 <= t0 ? p0 : Vec3(a + c0 * d), c1 >= t1 ? p1 : Vec3(a + c1 * d), a, d, R, c0, c1, best);
-    };
-    cellsOfPiece();
-    // The start's cell first: a contact near the start, found early, shrinks the rest.
-    grid.cellCoordinates(p0, start);
-    const std::uint64_t first = grid.keyAt(start[0], start[1], start[2]);
-    if (first != CellGrid::kOutside) {
-      visit(first);
-      cellsOfPiece();
-    }
-    const std::int64_t x0 = lo[0], x1 = hi[0], y0 = lo[1], y1 = hi[1], z0 = lo[2], z1 = hi[2];
-    for (std::int64_t z = z0; z <= z1; ++z)
-      for (std::int64_t y = y0; y <= y1; ++y)
-        for (std::int64_t x = x0; x <= x1; ++x) {
-          if (x < lo[0] || x > hi[0] || y < lo[1] || y > hi[1] || z < lo[2] || z > hi[2]) continue;
+    // The cells the piece's box meets (no more than 3 along an axis: the piece is at most a cell long), each with
+    // the part [c0, c1] of the piece inside it (its box grown by pad), in the order the piece enters them. A
+    // contact's centre lies in some cell, whose candidates reach every triangle within the grid radius of its
+    // points, and a scan's bounds hold on that part alone (tighter than on the whole piece); a cell entered after
+    // the best time so far holds no earlier contact, and the nearest cells, scanned first, shrink that time.
+    struct Part {
+      std::uint64_t key;
+      double c0, c1;
+    } parts[27];
+    int count = 0;
+    std::int64_t lo[3], hi[3];
+    grid.cellCoordinates(p0.cwiseMin(p1) - Vec3::Constant(pad), lo);
+    grid.cellCoordinates(p0.cwiseMax(p1) + Vec3::Constant(pad), hi);
+    for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
+      for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
+        for (std::int64_t x = lo[0]; x <= hi[0] && count < 27; ++x) {  // 3 x 3 x 3 at most
           const std::uint64_t key = grid.keyAt(x, y, z);
-          if (key == CellGrid::kOutside || key == first) continue;
-          const double before = best.toi;
-          visit(key);
-          if (best.toi < before) cellsOfPiece();
+          double c0 = t0, c1 = std::min(t1, best.toi);
+          if (key == CellGrid::kOutside ||
+              !clipToBox(grid.centreOf(key) - Vec3::Constant(0.5 * h + pad), h + 2.0 * pad, a, d, c0, c1))
+            continue;
+          int i = count++;
+          for (; i > 0 && parts[i - 1].c0 > c0; --i) parts[i] = parts[i - 1];
+          parts[i] = {key, c0, c1};
         }
+    for (int i = 0; i < count && parts[i].c0 <= best.toi; ++i) {
+      const double c0 = parts[i].c0, c1 = std::min(parts[i].c1, best.toi);
+      sweepCell(parts[i].key, c0 <= t0 ? p0 : Vec3(a + c0 * d), c1 >= t1 ? p1 : Vec3(a + c1 * d), a, d, R, c0, c1,
+                best);
+    }
     // Every contact at a time up to t1 has its centre in the pieces seen: the first one is known.
     if (best.toi <= t1) return;
   }
