@@ -344,20 +344,19 @@ void SweptSphereQuery::sweep(const Vec3& a, const Vec3& b, double r, SweptContac
 
 namespace {
 
-// The part [c0, c1] of [c0, c1] (in) in which a + t d lies in the box lo + [0, side]^3, or false when none. Each
-// slab's times are widened by 1e-12 for their rounding (the caller's box already has its spatial pad).
-bool clipToBox(const Vec3& lo, double side, const Vec3& a, const Vec3& d, double& c0, double& c1) {
+// Narrows [c0, c1] to the times at which a + t d lies in the box [lo, hi]; false when none. Each slab's times are
+// widened by widen for their rounding.
+bool clipToBox(const Vec3& lo, const Vec3& hi, const Vec3& a, const Vec3& d, double widen, double& c0, double& c1) {
   for (int k = 0; k < 3; ++k) {
-    const double l = lo[k], u = lo[k] + side;
     if (d[k] == 0.0) {
-      if (a[k] < l || a[k] > u) return false;
+      if (a[k] < lo[k] || a[k] > hi[k]) return false;
       continue;
     }
     const double inv = 1.0 / d[k];
-    double enter = (l - a[k]) * inv, leave = (u - a[k]) * inv;
+    double enter = (lo[k] - a[k]) * inv, leave = (hi[k] - a[k]) * inv;
     if (enter > leave) std::swap(enter, leave);
-    c0 = std::max(c0, enter - 1e-12);
-    c1 = std::min(c1, leave + 1e-12);
+    c0 = std::max(c0, enter - widen);
+    c1 = std::min(c1, leave + widen);
   }
   return c0 <= c1;
 }
@@ -400,9 +399,10 @@ void SweptSphereQuery::sweepGrid(const Vec3& a, const Vec3& d, double R, Best& b
         for (std::int64_t x = lo[0]; x <= hi[0] && count < 27; ++x) {  // 3 x 3 x 3 at most
           const std::uint64_t key = grid.keyAt(x, y, z);
           double c0 = t0, c1 = std::min(t1, best.toi);
-          if (key == CellGrid::kOutside ||
-              !clipToBox(grid.centreOf(key) - Vec3::Constant(0.5 * h + pad), h + 2.0 * pad, a, d, c0, c1))
-            continue;
+          if (key == CellGrid::kOutside) continue;
+          // The cell's box grown by pad (the pieces' rounding), its times by 1e-12 (the slabs' own).
+          const Vec3 centre = grid.centreOf(key), half = Vec3::Constant(0.5 * h + pad);
+          if (!clipToBox(centre - half, centre + half, a, d, 1e-12, c0, c1)) continue;
           int i = count++;
           for (; i > 0 && parts[i - 1].c0 > c0; --i) parts[i] = parts[i - 1];
           parts[i] = {key, c0, c1};
@@ -481,19 +481,9 @@ namespace {
 // Where the segment a -> a + d (t in [0, 1]) enters a node's box grown by R, or kNever when it misses.
 inline double enterGrownBox(const BoxNode& n, const Vec3& a, const Vec3& d, double R) {
   double t0 = 0.0, t1 = 1.0;
-  for (int k = 0; k < 3; ++k) {
-    const double lo = n.lo[k] - R, hi = n.hi[k] + R;
-    if (d[k] == 0.0) {
-      if (a[k] < lo || a[k] > hi) return kNever;
-      continue;
-    }
-    const double inv = 1.0 / d[k];
-    double near = (lo - a[k]) * inv, far = (hi - a[k]) * inv;
-    if (near > far) std::swap(near, far);
-    t0 = std::max(t0, near);
-    t1 = std::min(t1, far);
-  }
-  return t0 <= t1 ? t0 : kNever;
+  const Vec3 grow = Vec3::Constant(R);
+  const Vec3 lo = Vec3(n.lo[0], n.lo[1], n.lo[2]) - grow, hi = Vec3(n.hi[0], n.hi[1], n.hi[2]) + grow;
+  return clipToBox(lo, hi, a, d, 0.0, t0, t1) ? t0 : kNever;
 }
 
 }  // namespace
