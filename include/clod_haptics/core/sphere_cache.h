@@ -15,9 +15,10 @@ namespace clod_haptics {
 /**
  * \brief Version of the binary sphere-set cache format; part of every cache key and file header. 2: tight sets split
  * long triangles over several spheres (a level cached by version 1 still fits its mesh, but is not the level this
- * version builds, so it is not read).
+ * version builds, so it is not read). 3: tight sets take another principal axis only where it cuts clearly more
+ * compact halves (same reason).
  */
-constexpr std::uint32_t kSphereCacheFormatVersion = 2;
+constexpr std::uint32_t kSphereCacheFormatVersion = 3;
 
 /**
  * \brief A 64-bit content hash of a loaded mesh: FNV-1a over the vertex coordinates (after scaling)
