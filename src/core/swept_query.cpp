@@ -388,6 +388,7 @@ void SweptSphereQuery::sweepGrid(const Vec3& a, const Vec3& d, double R, Best& b
     // the best time so far holds no earlier contact, and the nearest cells, scanned first, shrink that time.
     struct Part {
       std::uint64_t key;
+      const CellGrid::CellRef* ref;
       double c0, c1;
     } parts[27];
     int count = 0;
@@ -399,31 +400,32 @@ void SweptSphereQuery::sweepGrid(const Vec3& a, const Vec3& d, double R, Best& b
         for (std::int64_t x = lo[0]; x <= hi[0] && count < 27; ++x) {  // 3 x 3 x 3 at most
           const std::uint64_t key = grid.keyAt(x, y, z);
           double c0 = t0, c1 = std::min(t1, best.toi);
-          if (key == CellGrid::kOutside) continue;
+          // A cell with no triangle within the grid radius is skipped before any clipping (free space).
+          const CellGrid::CellRef* ref = key == CellGrid::kOutside ? nullptr : grid.find(key);
+          if (ref == nullptr) continue;
           // The cell's box grown by pad (the pieces' rounding), its times by 1e-12 (the slabs' own).
           const Vec3 centre = grid.centreOf(key), half = Vec3::Constant(0.5 * h + pad);
           if (!clipToBox(centre - half, centre + half, a, d, 1e-12, c0, c1)) continue;
           int i = count++;
           for (; i > 0 && parts[i - 1].c0 > c0; --i) parts[i] = parts[i - 1];
-          parts[i] = {key, c0, c1};
+          parts[i] = {key, ref, c0, c1};
         }
     for (int i = 0; i < count && parts[i].c0 <= best.toi; ++i) {
       const double c0 = parts[i].c0, c1 = std::min(parts[i].c1, best.toi);
-      sweepCell(parts[i].key, c0 <= t0 ? p0 : Vec3(a + c0 * d), c1 >= t1 ? p1 : Vec3(a + c1 * d), a, d, R, c0, c1,
-                best);
+      sweepCell(*parts[i].ref, parts[i].key, c0 <= t0 ? p0 : Vec3(a + c0 * d), c1 >= t1 ? p1 : Vec3(a + c1 * d), a, d,
+                R, c0, c1, best);
     }
     // Every contact at a time up to t1 has its centre in the pieces seen: the first one is known.
     if (best.toi <= t1) return;
   }
 }
 
-void SweptSphereQuery::sweepCell(std::uint64_t key, const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& d,
-                                 double R, double t0, double t1, Best& best) const noexcept {
+void SweptSphereQuery::sweepCell(const CellGrid::CellRef& ref, std::uint64_t key, const Vec3& p0, const Vec3& p1,
+                                 const Vec3& a, const Vec3& d, double R, double t0, double t1,
+                                 Best& best) const noexcept {
   const CellGrid& grid = *grid_;
-  const CellGrid::CellRef* ref = grid.find(key);
-  if (ref == nullptr) return;  // no triangle within the grid radius of this cell
-  if (best.toi < t0) return;   // every contact through this piece comes later
-  const CellGrid::Cell cell = grid.cell(*ref);
+  if (best.toi < t0) return;  // every contact through this piece comes later
+  const CellGrid::Cell cell = grid.cell(ref);
   const Vec3 centre = grid.centreOf(key);
   // The bounds hold for the piece up to the best time so far (a contact after it cannot win): its far end
   // moves back each time a contact is found.

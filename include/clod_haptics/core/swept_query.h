@@ -116,8 +116,8 @@ class SweptSphereQuery {
   struct Best;
   void testTriangle(std::uint32_t t, const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
   void sweepGrid(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
-  void sweepCell(std::uint64_t key, const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& d, double R, double t0,
-                 double t1, Best& best) const noexcept;
+  void sweepCell(const CellGrid::CellRef& ref, std::uint64_t key, const Vec3& p0, const Vec3& p1, const Vec3& a,
+                 const Vec3& d, double R, double t0, double t1, Best& best) const noexcept;
   void sweepTree(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
 
   std::shared_ptr<const TriangleMesh> mesh_;
