@@ -80,22 +80,30 @@ bool SweptScene::blocksAtStart(std::int32_t object, std::int32_t triangle, const
 void SweptScene::sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact& out, std::int32_t hintObject,
                        std::int32_t hintTriangle) const noexcept {
   out = SceneSweptContact{};
-  // Blocked at 0 by the hinted triangle: that is the answer (SweptSphereQuery's tie rule, across objects too).
-  if (blocksAtStart(hintObject, hintTriangle, a, b, r, out)) return;
+  const std::size_t n = objects_.size();
+  const bool hinted = hintObject >= 0 && static_cast<std::size_t>(hintObject) < n;
   SweptContact c;
-  for (std::size_t i = 0; i < objects_.size(); ++i) {
+  // The hint's object first, its query given the hint: when it answers with the hinted triangle at 0 (its tie rule),
+  // that is the answer across objects too, and no other object is searched.
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = hinted ? (k + static_cast<std::size_t>(hintObject)) % n : k;
+    const bool isHint = hinted && i == static_cast<std::size_t>(hintObject);
     const Object& o = objects_[i];
     if (!o.active) continue;
     const double reach = o.boundRadius + r * (1.0 + 1e-9);
     if (!(squaredDistanceToSegment(o.boundCentre, a, b) <= reach * reach)) continue;
-    o.query->sweep(o.objectFromWorld * a, o.objectFromWorld * b, r, c,
-                   static_cast<std::int32_t>(i) == hintObject ? hintTriangle : -1);
-    out.contact.trianglesTested += c.trianglesTested;
-    if (!c.hit || (out.object >= 0 && !(c.toi < out.contact.toi))) continue;
-    const std::uint32_t tested = out.contact.trianglesTested;
+    o.query->sweep(o.objectFromWorld * a, o.objectFromWorld * b, r, c, isHint ? hintTriangle : -1);
+    const std::uint32_t tested = out.contact.trianglesTested + c.trianglesTested;
+    out.contact.trianglesTested = tested;
+    const bool heldByHint = isHint && c.hit && c.toi == 0.0 && c.triangle == hintTriangle;
+    // Ties to the lowest object (objects are visited from the hint's, not in index order).
+    const bool earlier = out.object < 0 || c.toi < out.contact.toi ||
+                         (c.toi == out.contact.toi && static_cast<std::int32_t>(i) < out.object);
+    if (!c.hit || !(heldByHint || earlier)) continue;
     out.contact = toWorld(o.worldFromObject, c);
     out.contact.trianglesTested = tested;
     out.object = static_cast<std::int32_t>(i);
+    if (heldByHint) return;
   }
 }
 
