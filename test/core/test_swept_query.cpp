@@ -240,6 +240,31 @@ TEST(SweptSphereQuery, AHintBlockingAtZeroWinsTheTie) {
   }
 }
 
+// blocksAtStart on bad input: a triangle out of range, non-finite points or a negative radius answer false and leave
+// out as it was.
+TEST(SweptSphereQuery, BlocksAtStartRefusesBadInput) {
+  auto mesh = std::make_shared<const TriangleMesh>(
+      makeMesh({{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}}, {{0, 1, 2}, {0, 2, 3}}, "plate"));
+  const SweptSphereQuery query(mesh);
+  const Vec3 a(0.2, 0.2, 0.25), in = a + Vec3(0.0, 0.0, -0.1);
+  SweptContact out;
+  ASSERT_TRUE(query.blocksAtStart(1, a, in, 0.25, out));  // the good case, for contrast
+  const double nan = std::nan("");
+  struct Case {
+    std::int32_t triangle;
+    Vec3 a, b;
+    double r;
+  };
+  for (const Case& k : {Case{-1, a, in, 0.25}, Case{2, a, in, 0.25}, Case{1, Vec3(nan, 0, 0), in, 0.25},
+                        Case{1, a, Vec3(0, nan, 0), 0.25}, Case{1, a, in, -0.25}, Case{1, a, in, nan}}) {
+    SweptContact untouched;
+    untouched.triangle = 7;
+    EXPECT_FALSE(query.blocksAtStart(k.triangle, k.a, k.b, k.r, untouched)) << "triangle " << k.triangle;
+    EXPECT_EQ(untouched.triangle, 7);
+    EXPECT_FALSE(untouched.hit);
+  }
+}
+
 // Sweeps around a mesh: from points near the surface, in random directions, of lengths from a
 // hundredth of the radius to many cells, plus zero-length ones and ones aimed through the surface.
 struct Sweep {

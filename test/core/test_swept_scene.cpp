@@ -137,6 +137,15 @@ TEST(SweptScene, AHintBlockingAtZeroWinsTheTieAcrossObjects) {
   EXPECT_EQ(c.object, 0);
   scene.sweep(a, a + Vec3(0.05, 0.0, 0.05), 0.1, c, 1, own.triangle);
   EXPECT_FALSE(c.contact.hit);
+  // A hint naming no object answers as no hint; blocksAtStart refuses it, and an inactive object.
+  scene.sweep(a, b, 0.1, c, 5, own.triangle);
+  EXPECT_EQ(c.object, 0);
+  SceneSweptContact held;
+  EXPECT_FALSE(scene.blocksAtStart(5, own.triangle, a, b, 0.1, held));
+  EXPECT_FALSE(scene.blocksAtStart(-1, own.triangle, a, b, 0.1, held));
+  EXPECT_TRUE(scene.blocksAtStart(1, own.triangle, a, b, 0.1, held));
+  scene.setActive(1, false);
+  EXPECT_FALSE(scene.blocksAtStart(1, own.triangle, a, b, 0.1, held));
 }
 
 }  // namespace
