@@ -21,10 +21,10 @@ struct HapticRenderer::Planes {
   Hint by[kMaxPlanes];
   int count = 0;
   Vec3 anchor = Vec3::Zero();  // the proxy at the first contact of the solve
-  /** Adds a plane unless one with the same normal is active; a fourth replaces the oldest. */
-  void add(const Vec3& normal, const Hint& contact) {
+  /** Adds a plane unless one with the same normal is active (then false); a fourth replaces the oldest. */
+  bool add(const Vec3& normal, const Hint& contact) {
     for (int i = 0; i < count; ++i)
-      if (n[i].dot(normal) > 1.0 - 1e-12) return;
+      if (n[i].dot(normal) > 1.0 - 1e-12) return false;
     if (count == kMaxPlanes) {
       for (int i = 0; i + 1 < kMaxPlanes; ++i) {
         n[i] = n[i + 1];
@@ -34,6 +34,7 @@ struct HapticRenderer::Planes {
     }
     n[count] = normal;
     by[count++] = contact;
+    return true;
   }
 };
 
@@ -124,6 +125,7 @@ Vec3 HapticRenderer::solve(const SweptScene& scene, const Vec3& from, const Vec3
   // A move shorter than a few skins is the skin itself (the proxy wedged between its planes): staying is as good,
   // never enters anything, and saves a sweep that would scan the cell for nothing.
   const double still = 16.0 * skin;
+  double lift = 0.0;  // see below
   for (int i = 0; i < kIterations; ++i) {
     if ((goal - p).squaredNorm() <= still * still) break;
     // The last tick's constraints first: one that still blocks at 0 answers the sweep without a search (a proxy
@@ -149,7 +151,17 @@ Vec3 HapticRenderer::solve(const SweptScene& scene, const Vec3& from, const Vec3
       out.object = hit.object;
       out.triangle = hit.contact.triangle;
     }
-    planes.add(hit.contact.normal, hint_);
+    if (!planes.add(hit.contact.normal, hint_) && hit.contact.toi == 0.0) {
+      // A triangle in the plane of an active constraint blocks the slide along it at once: the proxy rests on the
+      // line between two triangles of one plane (within the rounding margin of the second), and sliding over it
+      // comes closer to the second by a rounding's worth. The same goal would meet it again every iteration: lift
+      // the goal off that plane by a little more each time (1e-4 to 1e-2 of the slide; the proxy lands again
+      // next tick).
+      lift = lift == 0.0 ? 1e-4 : 10.0 * lift;
+      goal = constrain(target, p, planes.n, planes.count, skin) + lift * (goal - p).norm() * hit.contact.normal;
+      continue;
+    }
+    lift = 0.0;
     goal = constrain(target, p, planes.n, planes.count, skin);
   }
   return p;

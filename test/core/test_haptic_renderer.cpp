@@ -250,6 +250,35 @@ TEST(HapticRenderer, AWedgedProxyChecksItsLastConstraintsFirst) {
   EXPECT_LE(heldTests, 8u * heldTicks) << "triangles tested over the last " << heldTicks << " ticks";
 }
 
+// A proxy pushed into a finely tessellated crease (a floor and a wall, 0.5 mm squares) and slid along it, the device
+// inside both: the proxy runs along the line between two rows of the floor's triangles (x = r is a row boundary), rests
+// on both rows, and each slide comes closer to the row it is not above by a rounding's worth. It follows the device
+// along the crease (a proxy that took that row for a wall would stop on the line for good, the goal of every iteration
+// meeting the same row again), and stays out of both walls.
+TEST(HapticRenderer, SlidesAlongTheLineBetweenTwoTrianglesOfAPlane) {
+  const double L = 0.02;
+  const auto crease = finer({{Vec3(0, 0, 0), Vec3(L, 0, 0), Vec3(L, L, 0), Vec3(0, L, 0)},
+                             {Vec3(0, 0, 0), Vec3(0, L, 0), Vec3(0, L, L), Vec3(0, 0, L)}},
+                            {Vec3::UnitZ(), Vec3::UnitX()}, 40);
+  const SweptScene scene = sceneOf(crease);
+  for (double depth : {0.003, 0.004, 0.005}) {
+    std::vector<Vec3> device = path(Vec3(0.01, 0.003, 0.011), Vec3(kRadius - depth, 0.003, kRadius - depth), 0.05, 20);
+    const std::vector<Vec3> slide = path(device.back(), Vec3(kRadius - depth, 0.017, kRadius - depth), 0.05);
+    device.insert(device.end(), slide.begin(), slide.end());
+    HapticRenderer renderer(stylus());
+    ProxyTick tick;
+    int lagging = 0;
+    for (std::size_t i = 0; i < device.size(); ++i) {
+      renderer.update(scene, device[i], kDt, tick);
+      lagging += i > 400 && std::abs(tick.proxy.y() - device[i].y()) > 1e-6;
+      ASSERT_GE(tick.proxy.x(), kRadius * (1.0 - 1e-9)) << "depth " << depth << " tick " << i;
+      ASSERT_GE(tick.proxy.z(), kRadius * (1.0 - 1e-9)) << "depth " << depth << " tick " << i;
+    }
+    EXPECT_EQ(lagging, 0) << "depth " << depth;
+    EXPECT_NEAR(tick.proxy.y(), 0.017, 1e-6) << "depth " << depth;
+  }
+}
+
 // Several objects constrain the same proxy: the inside corner made of three separate boxes.
 TEST(HapticRenderer, SeveralObjectsMakeOneCorner) {
   SweptScene scene;
