@@ -128,14 +128,15 @@ Vec3 HapticRenderer::solve(const SweptScene& scene, const Vec3& from, const Vec3
   double lift = 0.0;  // see below
   for (int i = 0; i < kIterations; ++i) {
     if ((goal - p).squaredNorm() <= still * still) break;
-    // The last tick's constraints first: one that still blocks at 0 answers the sweep without a search (a proxy
-    // wedged in a crease meets the same two or three triangles every tick, each of them a search's worst case).
+    // The last tick's constraints first: one that still blocks at once answers the sweep without a search (a proxy
+    // wedged in a crease meets the same two or three triangles every tick, each of them a search's worst case). The
+    // proxy rests a skin above its planes, so "at once" is before it has moved still: it then stays where it is,
+    // which enters nothing, and takes the plane as a sweep that met the triangle there would.
     bool blocked = false;
     for (int k = 0; k < heldCount_ && !blocked; ++k) {
       const Hint& h = held_[k];
-      if (h.object == hint_.object && h.triangle == hint_.triangle) continue;  // the sweep checks that one
       ++out.trianglesTested;
-      blocked = scene.blocksAtStart(h.object, h.triangle, p, goal, r, hit);
+      blocked = scene.blocksAtStart(h.object, h.triangle, p, goal, r, hit, still);
     }
     if (!blocked) scene.sweep(p, goal, r, hit, hint_.object, hint_.triangle);
     ++out.sweeps;

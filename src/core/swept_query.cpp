@@ -219,13 +219,14 @@ void finish(const TriangleMesh& mesh, const Vec3& a, const Vec3& d, SweptContact
   out.normal = normal;
 }
 
-// Whether triangle t blocks the sweep (a -> a + d, local frame, test radius R) at toi = 0; then out is that answer.
+// Whether triangle t blocks the sweep (a -> a + d, local frame, test radius R) at toi = 0, or before the centre has
+// moved within; then out is the answer at toi = 0 with that triangle.
 bool blockedAtStartBy(const TriangleMesh& mesh, std::size_t t, const Vec3& a, const Vec3& d, double R,
-                      SweptContact& out) {
+                      SweptContact& out, double within = 0.0) {
   double toi;
   bool start = false;
-  if (!sweptSphereTriangle(a, d, R, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), toi, start) || toi != 0.0)
-    return false;
+  if (!sweptSphereTriangle(a, d, R, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2), toi, start)) return false;
+  if (toi != 0.0 && !(toi * d.norm() <= within)) return false;
   out = SweptContact{};
   out.trianglesTested = 1;
   out.hit = true;
@@ -363,13 +364,14 @@ bool clipToBox(const Vec3& lo, const Vec3& hi, const Vec3& a, const Vec3& d, dou
 
 }  // namespace
 
-bool SweptSphereQuery::blocksAtStart(std::int32_t triangle, const Vec3& a, const Vec3& b, double r,
-                                     SweptContact& out) const noexcept {
+bool SweptSphereQuery::blocksAtStart(std::int32_t triangle, const Vec3& a, const Vec3& b, double r, SweptContact& out,
+                                     double within) const noexcept {
   if (triangle < 0 || static_cast<std::size_t>(triangle) >= mesh_->size()) return false;
   if (!validPointer(a, r) || !b.allFinite()) return false;
   const Vec3 la = mesh_->toLocal(a), lb = mesh_->toLocal(b);
+  if (!(within >= 0.0)) return false;
   return blockedAtStartBy(*mesh_, static_cast<std::size_t>(triangle), la, lb - la,
-                          sweptRadiusMargin(r, magnitudeOf(la, lb)), out);
+                          sweptRadiusMargin(r, magnitudeOf(la, lb)), out, within);
 }
 
 void SweptSphereQuery::sweepGrid(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept {

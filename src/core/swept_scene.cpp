@@ -67,11 +67,12 @@ void SweptScene::updateBound(Object& o) {
 }
 
 bool SweptScene::blocksAtStart(std::int32_t object, std::int32_t triangle, const Vec3& a, const Vec3& b, double r,
-                               SceneSweptContact& out) const noexcept {
+                               SceneSweptContact& out, double within) const noexcept {
   if (object < 0 || static_cast<std::size_t>(object) >= objects_.size()) return false;
   const Object& o = objects_[static_cast<std::size_t>(object)];
   SweptContact c;
-  if (!o.active || !o.query->blocksAtStart(triangle, o.objectFromWorld * a, o.objectFromWorld * b, r, c)) return false;
+  if (!o.active || !o.query->blocksAtStart(triangle, o.objectFromWorld * a, o.objectFromWorld * b, r, c, within))
+    return false;
   out.contact = toWorld(o.worldFromObject, c);
   out.object = object;
   return true;

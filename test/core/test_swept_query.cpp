@@ -240,8 +240,47 @@ TEST(SweptSphereQuery, AHintBlockingAtZeroWinsTheTie) {
   }
 }
 
-// blocksAtStart on bad input: a triangle out of range, non-finite points or a negative radius answer false and leave
-// out as it was.
+// blocksAtStart with a distance within: a sphere a gap above a plate, moving into it, is blocked "at once" exactly when
+// the brute force's first contact comes before the centre has moved within (its time times the sweep's length); the
+// answer is then given at toi = 0, the point the triangle's closest to the centre at a. Moving along the plate or away
+// from it, no within makes it block. Random gaps, directions and withins on a random triangle.
+TEST(SweptSphereQuery, BlocksAtStartWithinADistanceAgreesWithTheBruteForce) {
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0), fraction(0.0, 1.0);
+  int blocked = 0, free = 0;
+  for (int k = 0; k < 400; ++k) {
+    const Vec3 v0(unit(rng), unit(rng), 0.1 * unit(rng)), v1(unit(rng), unit(rng), 0.1 * unit(rng)),
+        v2(unit(rng), unit(rng), 0.1 * unit(rng));
+    auto mesh = std::make_shared<const TriangleMesh>(makeMesh({v0, v1, v2}, {{0, 1, 2}}, "one triangle"));
+    if (!(mesh->normals[0].squaredNorm() > 0.5)) continue;
+    const SweptSphereQuery query(mesh);
+    const double r = 0.05 + 0.2 * fraction(rng), gap = r * std::pow(10.0, -1.0 - 9.0 * fraction(rng));
+    const Vec3 n = mesh->normals[0], centre = (v0 + v1 + v2) / 3.0;
+    const Vec3 a = centre + 0.3 * fraction(rng) * (v0 - centre) + (r + gap) * n;
+    const Vec3 b = a + Vec3(unit(rng), unit(rng), unit(rng)) * 0.5 * r;
+    const SweptContact reference = bruteForceSweep(*mesh, a, b, r);
+    const double travel = reference.hit ? reference.toi * (b - a).norm() : 0.0;
+    for (double within : {0.0, 0.5 * travel, travel * (1.0 + 1e-9), 2.0 * travel + 1e-9 * r, r}) {
+      SweptContact out;
+      const bool want = reference.hit && (reference.toi == 0.0 || travel <= within);
+      ASSERT_EQ(query.blocksAtStart(0, a, b, r, out, within), want)
+          << "case " << k << " gap " << gap << " within " << within << " travel " << travel;
+      if (!want) continue;
+      ++blocked;
+      EXPECT_TRUE(out.hit);
+      EXPECT_EQ(out.toi, 0.0);
+      EXPECT_EQ(out.triangle, 0);
+      EXPECT_EQ(out.point, closestPointOnTriangle(a, v0, v1, v2));
+      EXPECT_NEAR((out.normal - (a - out.point).normalized()).norm(), 0.0, 1e-12);
+    }
+    free += reference.hit ? 0 : 1;
+  }
+  EXPECT_GT(blocked, 200);  // both outcomes seen many times
+  EXPECT_GT(free, 50);
+}
+
+// blocksAtStart on bad input: a triangle out of range, non-finite points, a negative radius or a negative or NaN
+// within answer false and leave out as it was.
 TEST(SweptSphereQuery, BlocksAtStartRefusesBadInput) {
   auto mesh = std::make_shared<const TriangleMesh>(
       makeMesh({{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}}, {{0, 1, 2}, {0, 2, 3}}, "plate"));
@@ -262,6 +301,12 @@ TEST(SweptSphereQuery, BlocksAtStartRefusesBadInput) {
     EXPECT_FALSE(query.blocksAtStart(k.triangle, k.a, k.b, k.r, untouched)) << "triangle " << k.triangle;
     EXPECT_EQ(untouched.triangle, 7);
     EXPECT_FALSE(untouched.hit);
+  }
+  for (double within : {-1e-9, nan}) {
+    SweptContact untouched;
+    untouched.triangle = 7;
+    EXPECT_FALSE(query.blocksAtStart(1, a, in, 0.25, untouched, within)) << "within " << within;
+    EXPECT_EQ(untouched.triangle, 7);
   }
 }
 

@@ -144,6 +144,19 @@ TEST(SweptScene, AHintBlockingAtZeroWinsTheTieAcrossObjects) {
   EXPECT_FALSE(scene.blocksAtStart(5, own.triangle, a, b, 0.1, held));
   EXPECT_FALSE(scene.blocksAtStart(-1, own.triangle, a, b, 0.1, held));
   EXPECT_TRUE(scene.blocksAtStart(1, own.triangle, a, b, 0.1, held));
+  // Lifted a gap above the turned plate: blocked "at once" when within covers the travel to it (the same distance in
+  // the world as in the object's frame), answered at 0 with the centre where it is.
+  const Vec3 above = a + Vec3(0.0, 0.0, 0.002), down = above + Vec3(0.0, 0.0, -0.05);
+  const SweptContact gap = bruteForceSweep(moved(*plate, pose(0.5, Vec3::UnitZ(), Vec3::Zero())), above, down, 0.1);
+  ASSERT_TRUE(gap.hit);
+  const double travel = gap.toi * 0.05;
+  ASSERT_NEAR(travel, 0.002, 1e-9);
+  EXPECT_FALSE(scene.blocksAtStart(1, own.triangle, above, down, 0.1, held, 0.5 * travel));
+  ASSERT_TRUE(scene.blocksAtStart(1, own.triangle, above, down, 0.1, held, 1.01 * travel));
+  EXPECT_EQ(held.object, 1);
+  EXPECT_EQ(held.contact.toi, 0.0);
+  EXPECT_NEAR((held.contact.centre - above).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((held.contact.normal - Vec3::UnitZ()).norm(), 0.0, 1e-12);
   scene.setActive(1, false);
   EXPECT_FALSE(scene.blocksAtStart(1, own.triangle, a, b, 0.1, held));
 }

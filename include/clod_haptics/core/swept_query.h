@@ -103,9 +103,14 @@ class SweptSphereQuery {
    * \brief Whether one triangle blocks the sweep at toi = 0 (the sphere touches it at a, and the motion does not
    * keep away from it), with sweep's rules: then out is what sweep answers with that triangle as its hint, and true.
    * Otherwise out is left as it was. A proxy wedged against several triangles checks its last constraints this way
-   * before it searches. Allocation-free, noexcept; false for a triangle out of range or non-finite input.
+   * before it searches. Allocation-free, noexcept; false for a triangle out of range, non-finite input or a negative
+   * or NaN within.
+   * \param within also true when the sweep meets the triangle before the centre has moved this far (a proxy left a
+   * hair above its constraints): out is then answered at toi = 0 all the same, the centre at a. Another triangle may
+   * come first within that distance: a caller that stays at a enters neither.
    */
-  bool blocksAtStart(std::int32_t triangle, const Vec3& a, const Vec3& b, double r, SweptContact& out) const noexcept;
+  bool blocksAtStart(std::int32_t triangle, const Vec3& a, const Vec3& b, double r, SweptContact& out,
+                     double within = 0.0) const noexcept;
 
   /** \brief The mesh. */
   const std::shared_ptr<const TriangleMesh>& mesh() const { return mesh_; }

@@ -48,10 +48,11 @@ class SweptScene {
   /**
    * \brief Whether triangle t of object i blocks the sweep (world frame) at toi = 0, as
    * SweptSphereQuery::blocksAtStart; then out is what sweep answers with that hint, and true. False for an inactive
-   * or unknown object. A proxy checks its last constraints this way before it searches.
+   * or unknown object. A proxy checks its last constraints this way before it searches. within: as
+   * SweptSphereQuery::blocksAtStart's (a distance, the same in both frames).
    */
   bool blocksAtStart(std::int32_t object, std::int32_t triangle, const Vec3& a, const Vec3& b, double r,
-                     SceneSweptContact& out) const noexcept;
+                     SceneSweptContact& out, double within = 0.0) const noexcept;
 
   /**
    * \brief Whether a proxy of radius r may start at the world point p: it touches no active object, and lies
