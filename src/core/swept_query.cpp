@@ -9,6 +9,7 @@
 #include "clod_haptics/core/mesh_box_tree.h"
 #include "simd/cell_scan_avx2.h"
 #include "simd/dispatch.h"
+#include "simd/record_filter_avx2.h"
 
 namespace clod_haptics {
 namespace {
@@ -295,14 +296,23 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
   tree_ = detector_ && detector_->meshTree() ? detector_->meshTree() : meshBoxTreeOf(*mesh_);
 }
 
+const double* SweptSphereQuery::recordOf(std::uint32_t t) const noexcept {
+  return records_.data() + kRecord * static_cast<std::size_t>(t);
+}
+
 void SweptSphereQuery::testTriangle(std::uint32_t t, const Vec3& a, const Vec3& d, double R,
                                     Best& best) const noexcept {
   if (!best.firstTime(t)) return;
-  // One record: the ball first (often all a test reads), the plane, then the corners.
-  const double* rec = records_.data() + kRecord * static_cast<std::size_t>(t);
   ++best.tested;
+  // One record: the ball first (often all a test reads), then the rest.
+  const double* rec = recordOf(t);
+  if (capsuleMissesBall(Vec3(rec[0], rec[1], rec[2]), rec[3], a, d, best.invdd, R, best.toi)) return;
+  testRecord(t, a, d, R, best);
+}
+
+void SweptSphereQuery::testRecord(std::uint32_t t, const Vec3& a, const Vec3& d, double R, Best& best) const noexcept {
+  const double* rec = recordOf(t);
   const Vec3 c(rec[0], rec[1], rec[2]);
-  if (capsuleMissesBall(c, rec[3], a, d, best.invdd, R, best.toi)) return;
   const double dd = d.squaredNorm();
   if (planeBoundMisses(c, rec[3], Vec3(rec[4], rec[5], rec[6]), rec[7], a, d, best.reach, best.toi)) return;
   double toi;
@@ -445,35 +455,69 @@ void SweptSphereQuery::sweepCell(const CellGrid::CellRef& ref, std::uint64_t key
   };
   shrink();
   const double unit = grid.distanceUnit();
-  // The double test of one entry: whether it is tested, and whether the scan is over.
-  auto visit = [&](const CellGrid::Entry& e) {
+  // The entry's own bounds: 0 when the scan is over, 1 to pass it over, 2 to test its triangle.
+  auto judge = [&](const CellGrid::Entry& e) {
     const double dc = e.distance * unit;
     // distance(p, T) >= dc - |p - centre| on the whole piece (the farthest point is an end): sorted, so stop.
-    if (dc - reach > R) return false;
+    if (dc - reach > R) return 0;
     // distance(p, T) >= dc + (p - centre) . u, linear along the piece: its smaller end bounds it.
     const double u0 = (r0.x() * e.direction[0] + r0.y() * e.direction[1] + r0.z() * e.direction[2]) * (1.0 / 127.0);
     const double u1 = (r1.x() * e.direction[0] + r1.y() * e.direction[1] + r1.z() * e.direction[2]) * (1.0 / 127.0);
-    if (std::min(u0 - along * n0, u1 - along * n1) + dc - slack > R) return true;
-    testTriangle(e.triangle, a, d, R, best);
-    if (best.toi < end) shrink();
-    return true;
+    return std::min(u0 - along * n0, u1 - along * n1) + dc - slack > R ? 1 : 2;
+  };
+  // The double test of one entry: whether the scan goes on.
+  auto visit = [&](const CellGrid::Entry& e) {
+    const int verdict = judge(e);
+    if (verdict == 2) {
+      testTriangle(e.triangle, a, d, R, best);
+      if (best.toi < end) shrink();
+    }
+    return verdict != 0;
   };
   std::uint32_t i = 0;
 #if defined(CLOD_PACKET_AVX2)
   // Eight entries at a time through a float filter that keeps every entry the double test keeps; the double test
-  // then runs on those alone, with the bounds as they stand, so the same triangles are tested in the same order.
+  // then runs on those alone, with the bounds as they stand. The triangles it keeps go on four at a time through the
+  // records' ball and plane bounds in AVX2 (looser than the scalar ones), the survivors to the exact test, in order.
   if (cell.count >= 16 && detail::packetAvx2()) {
+    std::uint32_t batch[4];
+    int held = 0;
+    auto flush = [&]() {
+      if (held == 0) return;
+      const double* record[4];
+      for (int k = 0; k < 4; ++k) record[k] = recordOf(batch[std::min(k, held - 1)]);
+      const detail::RecordFilterSweep sweep{
+          {a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, std::min(1.0, best.toi), best.invdd, R, best.reach};
+      const unsigned keep = detail::recordFilterAvx2(record, sweep) & ((1u << held) - 1u);
+      for (int k = 0; k < held; ++k) {
+        if (!(keep & (1u << k))) continue;
+        testRecord(batch[k], a, d, R, best);
+        if (best.toi < end) shrink();
+      }
+      held = 0;
+    };
     double boundsEnd = end;
     detail::CellScanBounds bounds = detail::cellScanBounds(r0, r1, -along * n0, -along * n1, unit, R + slack, reach);
     for (; i + 8 <= cell.count; i += 8) {
-      if (cell.entries[i].distance * unit - reach > R) return;
-      for (unsigned m = detail::cellScanBlockAvx2(cell.entries + i, bounds); m != 0; m &= m - 1)
-        if (!visit(cell.entries[i + static_cast<std::uint32_t>(__builtin_ctz(m))])) return;
+      if (cell.entries[i].distance * unit - reach > R) break;
+      bool over = false;
+      for (unsigned m = detail::cellScanBlockAvx2(cell.entries + i, bounds); m != 0 && !over; m &= m - 1) {
+        const CellGrid::Entry& e = cell.entries[i + static_cast<std::uint32_t>(__builtin_ctz(m))];
+        const int verdict = judge(e);
+        over = verdict == 0;
+        if (verdict != 2 || !best.firstTime(e.triangle)) continue;
+        ++best.tested;
+        batch[held++] = e.triangle;
+        if (held == 4) flush();
+      }
+      flush();
+      if (over) return;
       if (end != boundsEnd) {  // a contact shortened the piece: tighter bounds for the rest
         boundsEnd = end;
         bounds = detail::cellScanBounds(r0, r1, -along * n0, -along * n1, unit, R + slack, reach);
       }
     }
+    if (i + 8 <= cell.count) return;  // stopped by the first entry of a block: sorted, the rest is farther
   }
 #endif
   for (; i < cell.count; ++i)

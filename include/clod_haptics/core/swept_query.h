@@ -119,7 +119,9 @@ class SweptSphereQuery {
 
  private:
   struct Best;
+  const double* recordOf(std::uint32_t t) const noexcept;
   void testTriangle(std::uint32_t t, const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
+  void testRecord(std::uint32_t t, const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
   void sweepGrid(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
   void sweepCell(const CellGrid::CellRef& ref, std::uint64_t key, const Vec3& p0, const Vec3& p1, const Vec3& a,
                  const Vec3& d, double R, double t0, double t1, Best& best) const noexcept;
