@@ -178,10 +178,12 @@ struct SweptSphereQuery::Best {
   static constexpr std::uint32_t kSeen = 256;
   std::uint32_t seen[kSeen];
   Best() { std::fill(seen, seen + kSeen, ~0u); }
-  bool firstTime(std::uint32_t t) {
+  /** Whether triangle t is met for the first time lately (then it is counted as tested, and its test runs). */
+  bool admit(std::uint32_t t) {
     std::uint32_t& slot = seen[t & (kSeen - 1)];
     if (slot == t) return false;
     slot = t;
+    ++tested;
     return true;
   }
   void offer(std::uint32_t t, double toiT, bool startT) {
@@ -302,8 +304,7 @@ const double* SweptSphereQuery::recordOf(std::uint32_t t) const noexcept {
 
 void SweptSphereQuery::testTriangle(std::uint32_t t, const Vec3& a, const Vec3& d, double R,
                                     Best& best) const noexcept {
-  if (!best.firstTime(t)) return;
-  ++best.tested;
+  if (!best.admit(t)) return;
   // One record: the ball first (often all a test reads), then the rest.
   const double* rec = recordOf(t);
   if (capsuleMissesBall(Vec3(rec[0], rec[1], rec[2]), rec[3], a, d, best.invdd, R, best.toi)) return;
@@ -482,12 +483,12 @@ void SweptSphereQuery::sweepCell(const CellGrid::CellRef& ref, std::uint64_t key
   if (cell.count >= 16 && detail::packetAvx2()) {
     std::uint32_t batch[4];
     int held = 0;
+    detail::RecordFilterSweep sweep{{a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, 1.0, best.invdd, R, best.reach};
     auto flush = [&]() {
       if (held == 0) return;
       const double* record[4];
       for (int k = 0; k < 4; ++k) record[k] = recordOf(batch[std::min(k, held - 1)]);
-      const detail::RecordFilterSweep sweep{
-          {a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, std::min(1.0, best.toi), best.invdd, R, best.reach};
+      sweep.end = std::min(1.0, best.toi);  // the rest is the sweep's own
       const unsigned keep = detail::recordFilterAvx2(record, sweep) & ((1u << held) - 1u);
       for (int k = 0; k < held; ++k) {
         if (!(keep & (1u << k))) continue;
@@ -505,8 +506,7 @@ void SweptSphereQuery::sweepCell(const CellGrid::CellRef& ref, std::uint64_t key
         const CellGrid::Entry& e = cell.entries[i + static_cast<std::uint32_t>(__builtin_ctz(m))];
         const int verdict = judge(e);
         over = verdict == 0;
-        if (verdict != 2 || !best.firstTime(e.triangle)) continue;
-        ++best.tested;
+        if (verdict != 2 || !best.admit(e.triangle)) continue;
         batch[held++] = e.triangle;
         if (held == 4) flush();
       }
