@@ -370,6 +370,11 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   // Start from the last contact: a close triangle found first lets the sorted scan stop early.
   if (cache != nullptr && cache->lastTriangle >= 0 && static_cast<std::size_t>(cache->lastTriangle) < mesh_->size())
     testGridTriangle(static_cast<std::uint32_t>(cache->lastTriangle), p, mode, best);
+  // A crowded cell (triangles far smaller than the radius): the tree reads fewer of them than the scan would.
+  if (cell.count > kTreeAboveEntries && meshTree_) {
+    preciseMeshTree(p, mode, best);
+    return;
+  }
   const double offset = rel.norm() + pad_;
   const double slack = grid_.slack();
   const double unit = grid_.distanceUnit();

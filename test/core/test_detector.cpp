@@ -15,7 +15,9 @@
 #include <utility>
 #include <vector>
 
+#include "allocation_counter.h"
 #include "clod_haptics/core/brute_force.h"
+#include "clod_haptics/core/cell_grid.h"
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
@@ -23,8 +25,6 @@
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "test_helpers.h"
-
-#include "allocation_counter.h"
 
 namespace {
 
@@ -492,6 +492,54 @@ TEST(ClodDetector, GridRegressionTwoTriangles) {
                                   << " brute-force contacts";
       }
     }
+}
+
+// Triangles far smaller than the radius crowd every cell of the grid with thousands of candidates; such a cell is
+// answered through the tree over the mesh (kTreeAboveEntries). A finely tessellated bumpy sheet at r = 0.08 (edges
+// of 0.1 r): most probes land in a crowded cell, and every answer, with and without a QueryCache, is brute force's.
+TEST(ClodDetector, CrowdedCellsAnswerAsBruteForce) {
+  constexpr int n = 120;
+  std::vector<Vec3> vertices;
+  std::vector<Triangle> triangles;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) {
+      const double x = double(i) / n, y = double(j) / n;
+      vertices.emplace_back(x, y, 0.05 * std::sin(6.0 * x) * std::cos(5.0 * y));
+    }
+  for (std::uint32_t j = 0; j < n; ++j)
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const std::uint32_t a = j * (n + 1) + i;
+      triangles.push_back({a, a + 1, a + n + 2});
+      triangles.push_back({a, a + n + 2, a + n + 1});
+    }
+  const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(vertices, triangles, "bumpy-sheet"));
+  const auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
+  constexpr double r = 0.08;
+  const ClodDetector det(mesh, set, FastLevel::Grid, r);
+  const CellGrid grid(*mesh, *set, r);  // the grid the detector holds, built again to count its cells
+  std::vector<Vec3> probes = nearSurfaceProbes(*mesh, 1500, r, 21);
+  sortMorton(probes);
+  std::size_t crowded = 0, contacts = 0;
+  QueryCache cache;
+  for (const Vec3& p : probes) {
+    const CellGrid::CellRef* ref = grid.find(grid.keyOf(mesh->toLocal(p)));
+    crowded += ref != nullptr && grid.cell(*ref).count > ClodDetector::kTreeAboveEntries;
+    const ContactResult ref0 = bruteForceQuery(*mesh, p, r);
+    contacts += ref0.contact;
+    ContactResult got, cached;
+    det.query(p, r, DetectionMode::Exact, got);
+    det.query(p, r, DetectionMode::Exact, cached, &cache);
+    for (const ContactResult* o : {&got, &cached}) {
+      ASSERT_EQ(o->contact, ref0.contact) << p.transpose();
+      if (!ref0.contact) continue;
+      ASSERT_EQ(o->distance, ref0.distance) << p.transpose();
+      ASSERT_EQ(o->triangle, ref0.triangle) << p.transpose();
+      ASSERT_EQ(o->point, ref0.point) << p.transpose();
+      ASSERT_EQ(o->inside, ref0.inside) << p.transpose();
+    }
+  }
+  EXPECT_GT(crowded, probes.size() / 2) << "the sheet must crowd the cells beyond kTreeAboveEntries";
+  EXPECT_GT(contacts, probes.size() / 2);
 }
 
 TEST(ClodDetector, InvalidQueriesAnswerNoContact) {
