@@ -101,6 +101,14 @@ std::vector<std::unique_ptr<Model>> thinModels() {
     out.push_back(prepare(name.str(), "cylinder", d, slicedCylinder(Vec3::Zero(), 0.5e-3 * d, 0.06, 24, name.str())));
   }
   out.push_back(prepare("antler", "antler", 3.0, antler()));
+  // Finely tessellated surfaces at the stylus's scale (a high-resolution scan): an ellipsoid of semi-axes 15, 12 and
+  // 9 mm with edges of 0.25 r and 0.1 r (19k and 122k triangles), where every cell of the grid lists thousands.
+  for (double edge : {0.25, 0.1}) {
+    std::ostringstream name;
+    name << "ellipsoid-edge-" << edge << "r";
+    out.push_back(prepare(name.str(), "fine", edge * kR * 1e3,
+                          ellipsoidWithEdge(Vec3(0.015, 0.012, 0.009), Vec3::Zero(), edge * kR, name.str())));
+  }
   return out;
 }
 
@@ -123,19 +131,20 @@ std::vector<Vec3> line(const Vec3& a, const Vec3& b, double speed) {
 }
 
 // Straight pushes through the part: plates along -z (tilted up to 30 degrees), cylinders across their axis
-// with an offset that makes contact, shared meshes along the inward normal of a random surface point.
+// with an offset that makes contact, shared meshes and fine ellipsoids along the inward normal of a random surface
+// point.
 std::vector<std::vector<Vec3>> pushes(const Model& m, double speed, int runs, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::vector<std::vector<Vec3>> out;
   const std::vector<Vec3> surface =
-      m.kind == "shared" ? nearSurfaceProbes(*m.mesh, 20 * runs, 0.0, seed) : std::vector<Vec3>{};
+      m.kind == "shared" || m.kind == "fine" ? nearSurfaceProbes(*m.mesh, 20 * runs, 0.0, seed) : std::vector<Vec3>{};
   for (std::size_t i = 0; out.size() < static_cast<std::size_t>(runs) && i < 20u * runs; ++i) {
     Vec3 centre, dir;
     if (m.kind == "plate") {
       centre = Vec3(0.01 * u(rng), 0.01 * u(rng), 0.0);
       dir = Vec3(0.5 * u(rng), 0.5 * u(rng), -1.0).normalized();
-    } else if (m.kind == "shared") {
+    } else if (m.kind == "shared" || m.kind == "fine") {
       const ContactResult c = bruteForceQuery(*m.mesh, surface[i % surface.size()], 1.0);
       centre = c.point;
       dir = -c.normal;
@@ -381,11 +390,11 @@ void proxySection(const std::vector<std::string>& sharedPaths, const std::string
         "twice: `first` finds the region out of the caches, `repeat` runs the same push again.\n\n| model | triangles "
         "| path | contender | pass | mean | median | p90 | p99 | max |\n|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& m : models) {
-    if (m->kind != "shared" && m->name != "antler" && m->name != "plate-0.5mm") continue;
+    if (m->kind != "shared" && m->kind != "fine" && m->name != "antler" && m->name != "plate-0.5mm") continue;
     for (double speed : kSpeeds) {
       costs(*m, "pushes-" + num(speed) + "mps", pushes(*m, speed, costRuns, 11), cost, md);
     }
-    if (m->kind == "shared" && !trajectory.empty())
+    if ((m->kind == "shared" || m->kind == "fine") && !trajectory.empty())
       costs(*m, "trajectory", {placeOver(trajectory, *m->mesh)}, cost, md);
     std::cout << "  proxy: " << m->name << " costs measured\n" << std::flush;
   }

@@ -302,6 +302,11 @@ const double* SweptSphereQuery::recordOf(std::uint32_t t) const noexcept {
   return records_.data() + kRecord * static_cast<std::size_t>(t);
 }
 
+bool SweptSphereQuery::crowdedAt(const Vec3& local) const noexcept {
+  const CellGrid::CellRef* ref = grid_->find(grid_->keyOf(local));
+  return ref != nullptr && grid_->cell(*ref).count > ClodDetector::kTreeAboveEntries;
+}
+
 void SweptSphereQuery::testTriangle(std::uint32_t t, const Vec3& a, const Vec3& d, double R,
                                     Best& best) const noexcept {
   if (!best.admit(t)) return;
@@ -338,9 +343,11 @@ void SweptSphereQuery::sweep(const Vec3& a, const Vec3& b, double r, SweptContac
   if (hint >= 0 && static_cast<std::size_t>(hint) < mesh_->size())
     testTriangle(static_cast<std::uint32_t>(hint), la, d, R, best);
   // Blocked at 0 by the hint: it is the answer (bruteForceSweep's tie rule), nothing comes earlier. Otherwise the
-  // grid serves a sweep of up to a few thousand cells; a longer one takes the tree, which skips empty space.
+  // grid serves a sweep of up to a few thousand cells; a longer one takes the tree, which skips empty space, and so
+  // does one that starts in a crowded cell (triangles far smaller than r, as ClodDetector's point query): there the
+  // cell's bounds keep every triangle a few tenths of r beside the path, the tree's only those beside its boxes.
   if (best.toi > 0.0) {
-    if (grid_ != nullptr && r <= grid_->radius() && d.norm() <= 4096.0 * grid_->cellSize())
+    if (grid_ != nullptr && r <= grid_->radius() && d.norm() <= 4096.0 * grid_->cellSize() && !crowdedAt(la))
       sweepGrid(la, d, R, best);
     else
       sweepTree(la, d, R, best);
@@ -526,12 +533,21 @@ void SweptSphereQuery::sweepCell(const CellGrid::CellRef& ref, std::uint64_t key
 
 namespace {
 
-// Where the segment a -> a + d (t in [0, 1]) enters a node's box grown by R, or kNever when it misses.
-inline double enterGrownBox(const BoxNode& n, const Vec3& a, const Vec3& d, double R) {
+// Where the segment a -> a + d (t in [0, 1]) enters a node's box grown by R, or kNever when it misses it, or when
+// the part of the segment inside that grown box, up to tMax, stays farther than R from the box itself (then
+// farther from its triangles). That part's bounding box is at least as close to the node's box as any of its
+// points (the squared distance of two boxes adds the gaps on each axis, a lower bound of each point's): this drops
+// the nodes beside a sphere sliding over a surface, which the grown box keeps for R on either side of its path.
+inline double enterGrownBox(const BoxNode& n, const Vec3& a, const Vec3& d, double R, double tMax) {
   double t0 = 0.0, t1 = 1.0;
   const Vec3 grow = Vec3::Constant(R);
-  const Vec3 lo = Vec3(n.lo[0], n.lo[1], n.lo[2]) - grow, hi = Vec3(n.hi[0], n.hi[1], n.hi[2]) + grow;
-  return clipToBox(lo, hi, a, d, 0.0, t0, t1) ? t0 : kNever;
+  const Vec3 lo(n.lo[0], n.lo[1], n.lo[2]), hi(n.hi[0], n.hi[1], n.hi[2]);
+  if (!clipToBox(lo - grow, hi + grow, a, d, 0.0, t0, t1)) return kNever;
+  t1 = std::min(t1, tMax);
+  if (t1 < t0) return t0;  // after the best time: the caller skips it
+  const Vec3 p0 = a + t0 * d, p1 = a + t1 * d;
+  const Vec3 gap = (lo - p0.cwiseMax(p1)).cwiseMax(p0.cwiseMin(p1) - hi).cwiseMax(0.0);
+  return gap.squaredNorm() > R * R ? kNever : t0;
 }
 
 }  // namespace
@@ -548,7 +564,7 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
   };
   Item stack[128];
   int top = 0;
-  const double t = enterGrownBox(nodes[0], a, d, grow);
+  const double t = enterGrownBox(nodes[0], a, d, grow, best.toi);
   if (t != kNever) stack[top++] = {0, t};
   while (top > 0) {
     const Item item = stack[--top];
@@ -559,7 +575,8 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
       continue;
     }
     const std::uint32_t left = item.node + 1, right = node.first;
-    const double tl = enterGrownBox(nodes[left], a, d, grow), tr = enterGrownBox(nodes[right], a, d, grow);
+    const double tl = enterGrownBox(nodes[left], a, d, grow, best.toi),
+                 tr = enterGrownBox(nodes[right], a, d, grow, best.toi);
     // The nearer child on top of the stack.
     if (tl <= tr) {
       if (tr != kNever) stack[top++] = {right, tr};

@@ -469,6 +469,41 @@ TEST(SweptSphereQuery, SameAsBruteForceOnTheContactShell) {
     }
 }
 
+// Triangles far smaller than r crowd the grid's cells beyond ClodDetector::kTreeAboveEntries: a sweep that starts in
+// such a cell goes through the tree over the mesh instead (its boxes judged by their distance to the part of the
+// sweep inside them). A bumpy height field of 28,800 triangles at r = 0.2 (edges of 0.08 r): random sweeps near it
+// and a proxy's sweeps resting on it, every answer brute force's.
+TEST(SweptSphereQuery, SameAsBruteForceInCrowdedCells) {
+  auto mesh = std::make_shared<const TriangleMesh>(heightField(
+      120, [](double x, double y) { return 0.1 * std::sin(3.0 * x) * std::cos(2.0 * y); }, Eigen::Matrix3d::Identity(),
+      Vec3(0.5, -0.25, 2.0)));
+  auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
+  const double r = 0.2;
+  auto detector = std::make_shared<const ClodDetector>(mesh, set, FastLevel::Grid, r);
+  const SweptSphereQuery query(mesh, detector);
+  std::vector<Sweep> sweeps = sweepsNear(*mesh, 500, r, 41);
+  std::mt19937_64 rng(43);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int i = 0; i < 300; ++i) {  // resting on the surface (a hair off), sliding along it, slightly in or out
+    const std::size_t t = static_cast<std::size_t>(u(rng) * 0.999 * static_cast<double>(mesh->size()));
+    const Vec3 q = mesh->toModel(mesh->centroid(t));
+    const Vec3 n = mesh->normals[t].z() > 0.0 ? Vec3(mesh->normals[t]) : Vec3(-mesh->normals[t]);
+    const Vec3 a = q + n * r * (1.0 + (i % 3) * 1e-9);
+    Vec3 tangent = randomUnit(rng);
+    tangent = (tangent - tangent.dot(n) * n).normalized();
+    const double normalPart[] = {0.0, -1e-3, 1e-3};
+    sweeps.push_back({a, a + r * (0.01 + u(rng)) * (tangent + normalPart[i % 3] * n)});
+  }
+  const CellGrid& grid = detector->grid();
+  std::size_t crowded = 0;
+  for (const Sweep& w : sweeps) {
+    const CellGrid::CellRef* ref = grid.find(grid.keyOf(mesh->toLocal(w.a)));
+    crowded += ref != nullptr && grid.cell(*ref).count > ClodDetector::kTreeAboveEntries;
+  }
+  EXPECT_GT(crowded, sweeps.size() / 2) << "the height field must crowd the cells beyond kTreeAboveEntries";
+  expectSameAsBruteForce(*mesh, query, sweeps, r, "crowded height field");
+}
+
 #if defined(CLOD_PACKET_AVX2)
 // The AVX2 filter of a cell scan against the double test it stands in front of (SweptSphereQuery::sweepCell):
 // random entries and piece ends, the threshold set near the entries' bounds so that many sit a hair either side.

@@ -75,8 +75,10 @@ SweptContact bruteForceSweep(const TriangleMesh& mesh, const Vec3& a, const Vec3
  * every contact at radius r is found; a triangle that comes within the rounding margin beyond the grid's
  * radius but never within it may be passed over there (the answer then differs from bruteForceSweep's only
  * within that margin, and still reports no path free that is blocked at radius r).
- * Larger radii, or a mesh without a grid, walk the box tree over the triangles (MeshBoxTree: the grid detector's,
- * else the mesh's own when it fits, else built here) with the capsule, nearest node first.
+ * Larger radii, a mesh without a grid, a sweep longer than 4096 cells, and a sweep that starts in a cell listing
+ * more than ClodDetector::kTreeAboveEntries triangles (triangles far smaller than r) walk the box tree over the
+ * triangles (MeshBoxTree: the grid detector's, else the mesh's own when it fits, else built here) with the capsule,
+ * nearest node first; a node is entered when the part of the sweep inside its box grown by r comes within r of it.
  *
  * Immutable after construction: sweep() is const, allocates nothing, never throws, and may run on many
  * threads at once.
@@ -126,6 +128,8 @@ class SweptSphereQuery {
   void sweepCell(const CellGrid::CellRef& ref, std::uint64_t key, const Vec3& p0, const Vec3& p1, const Vec3& a,
                  const Vec3& d, double R, double t0, double t1, Best& best) const noexcept;
   void sweepTree(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
+  /** Whether the grid's cell at a local point lists more than ClodDetector::kTreeAboveEntries triangles. */
+  bool crowdedAt(const Vec3& local) const noexcept;
 
   std::shared_ptr<const TriangleMesh> mesh_;
   std::shared_ptr<const ClodDetector> detector_;
