@@ -85,17 +85,20 @@ std::uint64_t nextDetectorId() {
 /** Per triangle, a ball around it (centroid, radius reaching its vertices plus pad), then its three corners. */
 /**
  * Nearest child first through a box tree from root, calling leaf(item) for every item of each leaf whose box lies
- * within sqrt(d2) of p; d2 may shrink during the walk (a closer triangle found), which prunes the rest.
+ * within sqrt(d2) of p (and its slab, when slabs are given per node); d2 may shrink during the walk (a closer
+ * triangle found), which prunes the rest.
  */
 template <class Leaf>
 inline void walkBoxTree(const BoxNode* nodes, std::uint32_t root, const std::uint32_t* order, const Vec3& p,
-                        const double& d2, Leaf&& leaf) {
+                        const double& d2, Leaf&& leaf, const NodeSlab* slabs = nullptr) {
   std::uint32_t stack[64];
   int top = 0;
   stack[top++] = root;
   while (top > 0) {
-    const BoxNode& node = nodes[stack[--top]];
+    const std::uint32_t at = stack[--top];
+    const BoxNode& node = nodes[at];
     if (squaredDistanceToNode(node, p.x(), p.y(), p.z()) > d2) continue;
+    if (slabs != nullptr && slabSquaredDistance(slabs[at], p) > d2) continue;
     if (node.count > 0) {
       for (std::uint32_t i = node.first; i < node.first + node.count; ++i) leaf(order[i]);
       continue;
@@ -253,8 +256,10 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
     // all the triangles at once.
     if (fastLevel_ == FastLevel::Hierarchy)
       buildTriangleTrees(m, s, pad_, triangleNodes_, triangleOrder_, triangleRoot_);
-    else
+    else {
       meshTree_ = meshBoxTreeOf(m);
+      meshSlabs_ = meshTreeSlabs(*meshTree_, m);
+    }
   }
   // The grid last: its construction peak then meets only the trees kept, not their build's temporaries.
   if (fastLevel_ == FastLevel::Grid) {
@@ -283,8 +288,8 @@ std::size_t ClodDetector::bytes() const noexcept {
   return sizeof(*this) + grid_.bytes() + bytesOf(sphereData_) + bytesOf(triangles_) + bytesOf(sphereNodes_) +
          bytesOf(sphereOrder_) + bytesOf(tightNodes_) + bytesOf(tightOrder_) + bytesOf(triangleNodes_) +
          bytesOf(triangleOrder_) + bytesOf(triangleRoot_) + bytesOf(sphereOfTriangle_) +
-         (meshTree_ ? bytesOf(meshTree_->nodes) + bytesOf(meshTree_->order) : 0) + bytesOf(gapNodes_) +
-         bytesOf(gapOrder_) + bytesOf(gapRadius_);
+         (meshTree_ ? bytesOf(meshTree_->nodes) + bytesOf(meshTree_->order) : 0) + bytesOf(meshSlabs_) +
+         bytesOf(gapNodes_) + bytesOf(gapOrder_) + bytesOf(gapRadius_);
 }
 
 inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode,
@@ -325,8 +330,9 @@ void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMod
 }
 
 void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const {
-  walkBoxTree(meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2,
-              [&](std::uint32_t t) { testGridTriangle(t, p, mode, best); });
+  walkBoxTree(
+      meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2,
+      [&](std::uint32_t t) { testGridTriangle(t, p, mode, best); }, meshSlabs_.empty() ? nullptr : meshSlabs_.data());
 }
 
 // The grid's precise test reads the triangle from the mesh's own arrays (indices, vertices: compact,

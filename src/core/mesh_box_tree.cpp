@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "parallel.h"
+
 namespace clod_haptics {
 
 namespace {
@@ -81,6 +83,55 @@ std::string meshBoxTreeProblem(const MeshBoxTree& tree, const TriangleMesh& mesh
 std::shared_ptr<const MeshBoxTree> meshBoxTreeOf(const TriangleMesh& mesh) {
   if (mesh.boxTree && meshBoxTreeProblem(*mesh.boxTree, mesh).empty()) return mesh.boxTree;
   return buildMeshBoxTree(mesh);
+}
+
+std::vector<NodeSlab> meshTreeSlabs(const MeshBoxTree& tree, const TriangleMesh& mesh) {
+  const std::vector<BoxNode>& nodes = tree.nodes;
+  std::vector<NodeSlab> slabs(nodes.size());
+  // The run of the order array below each node: children come after their parent (the left one next), and the
+  // leaves below a node take consecutive runs (meshBoxTreeProblem), so one pass from the last node up gives them.
+  std::vector<std::uint32_t> begin(nodes.size()), end(nodes.size());
+  for (std::size_t i = nodes.size(); i-- > 0;) {
+    const BoxNode& n = nodes[i];
+    if (n.count > 0) {
+      begin[i] = n.first;
+      end[i] = n.first + n.count;
+    } else {
+      begin[i] = std::min(begin[i + 1], begin[n.first]);
+      end[i] = std::max(end[i + 1], end[n.first]);
+    }
+  }
+  const double pad = meshBoxTreePad(mesh);
+  auto fill = [&](std::size_t i) {
+    if (end[i] - begin[i] > kSlabTriangles) return;
+    const BoxNode& n = nodes[i];
+    NodeSlab& s = slabs[i];
+    s.centre = 0.5 * (Vec3(n.lo[0], n.lo[1], n.lo[2]) + Vec3(n.hi[0], n.hi[1], n.hi[2]));
+    Vec3 sum = Vec3::Zero();  // area-weighted, so slivers and fan centres barely turn it
+    for (std::uint32_t k = begin[i]; k < end[i]; ++k) {
+      const std::size_t t = tree.order[k];
+      sum += (mesh.vertex(t, 1) - mesh.vertex(t, 0)).cross(mesh.vertex(t, 2) - mesh.vertex(t, 0));
+    }
+    const double length = sum.norm();
+    s.normal = length > 0.0 ? Vec3(sum / length) : Vec3::Zero();
+    double thick = 0.0, radius = 0.0;
+    for (std::uint32_t k = begin[i]; k < end[i]; ++k)
+      for (int v = 0; v < 3; ++v) {
+        const Vec3 m = mesh.vertex(tree.order[k], v) - s.centre;
+        thick = std::max(thick, std::abs(s.normal.dot(m)));
+        radius = std::max(radius, m.norm());
+      }
+    // Rounded up for the rounding of these sums and of the bound's own evaluation (relative to the node and to the
+    // coordinates).
+    s.thick = thick * (1.0 + 1e-9) + 1e-12 * radius + pad;
+    s.radius = radius * (1.0 + 1e-9) + pad;
+  };
+  // Two threads, each half of the nodes (depth first: about half of the tree each).
+  const std::size_t half = nodes.size() / 2;
+  detail::runParallel(2, [&](unsigned part) {
+    for (std::size_t i = part ? half : 0; i < (part ? nodes.size() : half); ++i) fill(i);
+  });
+  return slabs;
 }
 
 }  // namespace clod_haptics

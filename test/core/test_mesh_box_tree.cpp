@@ -6,16 +6,19 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <random>
 #include <string>
 
 #include "cache_file_helpers.h"
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/geometry.h"
 #include "clod_haptics/core/mesh_box_tree.h"
 #include "clod_haptics/core/mesh_cache.h"
 #include "clod_haptics/core/mesh_loader.h"
@@ -192,6 +195,82 @@ TEST(MeshBoxTree, DamagedTreeInTheCacheFileIsRefused) {
     ADD_FAILURE() << "read a mesh whose tree lists a triangle twice";
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("box tree"), std::string::npos) << e.what();
+  }
+}
+
+// The slabs: every vertex below a node within its thick of the plane and its radius of the centre, and the slab's
+// bound never above the distance to a triangle below (brute force over the node's triangles), from points near
+// and far, on every shared mesh and a finely tessellated sheet far from the origin. Nodes above kSlabTriangles
+// have none (infinite, never pruning).
+TEST(MeshBoxTree, SlabsBoundWhatLiesBelowThem) {
+  std::vector<std::shared_ptr<const TriangleMesh>> meshes;
+  for (const std::string& path : clod_test::sharedMeshes()) meshes.push_back(clod_test::loadNormalized(path));
+  {
+    std::vector<Vec3> v;
+    std::vector<Triangle> t;
+    constexpr std::uint32_t n = 60;
+    for (std::uint32_t j = 0; j <= n; ++j)
+      for (std::uint32_t i = 0; i <= n; ++i)
+        v.emplace_back(3e3 + i * 0.01, -2e3 + j * 0.01, 0.02 * std::sin(0.3 * i) * std::cos(0.2 * j));
+    for (std::uint32_t j = 0; j < n; ++j)
+      for (std::uint32_t i = 0; i < n; ++i) {
+        const std::uint32_t a = j * (n + 1) + i;
+        t.push_back({a, a + 1, a + n + 2});
+        t.push_back({a, a + n + 2, a + n + 1});
+      }
+    meshes.push_back(std::make_shared<const TriangleMesh>(makeMesh(v, t, "far sheet")));
+  }
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const auto& mesh : meshes) {
+    const auto tree = buildMeshBoxTree(*mesh);
+    const std::vector<NodeSlab> slabs = meshTreeSlabs(*tree, *mesh);
+    ASSERT_EQ(slabs.size(), tree->nodes.size()) << mesh->name;
+    // The triangles below each node: its leaves' runs, collected depth first.
+    std::size_t withSlab = 0, checked = 0, tight = 0;
+    for (std::size_t i = 0; i < tree->nodes.size(); ++i) {
+      std::vector<std::uint32_t> below, stack{static_cast<std::uint32_t>(i)};
+      while (!stack.empty()) {
+        const BoxNode& node = tree->nodes[stack.back()];
+        const std::uint32_t at = stack.back();
+        stack.pop_back();
+        if (node.count > 0) {
+          for (std::uint32_t k = node.first; k < node.first + node.count; ++k) below.push_back(tree->order[k]);
+        } else {
+          stack.push_back(at + 1);
+          stack.push_back(node.first);
+        }
+      }
+      const NodeSlab& s = slabs[i];
+      if (below.size() > kSlabTriangles) {
+        EXPECT_TRUE(std::isinf(s.thick) && std::isinf(s.radius)) << mesh->name << " node " << i;
+        continue;
+      }
+      ++withSlab;
+      for (std::uint32_t t : below)
+        for (int k = 0; k < 3; ++k) {
+          const Vec3 m = mesh->vertex(t, k) - s.centre;
+          ASSERT_LE(std::abs(s.normal.dot(m)), s.thick) << mesh->name << " node " << i;
+          ASSERT_LE(m.norm(), s.radius) << mesh->name << " node " << i;
+        }
+      if (i % 7 != 0) continue;  // the bound on a sample of the nodes
+      for (int q = 0; q < 20; ++q) {
+        const double scale = q < 10 ? s.radius : 5.0 * s.radius;
+        Vec3 p = s.centre + scale * Vec3(u(rng), u(rng), u(rng));
+        if (q % 4 == 0) p = s.centre + s.normal * (s.thick * (1.0 + 1e-6)) + 0.5 * s.radius * Vec3(u(rng), u(rng), 0.0);
+        double nearest = std::numeric_limits<double>::infinity();
+        for (std::uint32_t t : below)
+          nearest = std::min(nearest,
+                             (p - closestPointOnTriangle(p, mesh->vertex(t, 0), mesh->vertex(t, 1), mesh->vertex(t, 2)))
+                                 .squaredNorm());
+        const double bound = slabSquaredDistance(s, p);
+        ASSERT_LE(bound, nearest) << mesh->name << " node " << i << " point " << p.transpose();
+        ++checked;
+        tight += bound > 0.25 * nearest;
+      }
+    }
+    EXPECT_GT(withSlab, tree->nodes.size() / 2) << mesh->name;
+    EXPECT_GT(tight, checked / 4) << mesh->name << ": the bound must mean something";
   }
 }
 

@@ -199,6 +199,7 @@ class ClodDetector {
   // Grid: one tree over all the triangles, for pointers beyond the grid's radius and the deep search (the mesh's
   // own when it brings one that fits, see meshBoxTreeOf).
   std::shared_ptr<const MeshBoxTree> meshTree_;
+  std::vector<NodeSlab> meshSlabs_;          // per node of meshTree_: what its walks prune by beside the boxes
   const Triangle* triangleIndex_ = nullptr;  // the mesh's arrays (kept alive by mesh_)
   const Vec3* vertices_ = nullptr;
   const Vec3* normals_ = nullptr;

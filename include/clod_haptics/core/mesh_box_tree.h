@@ -1,6 +1,9 @@
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -39,5 +42,39 @@ std::string meshBoxTreeProblem(const MeshBoxTree& tree, const TriangleMesh& mesh
 
 /** \brief mesh.boxTree when it serves the mesh (meshBoxTreeProblem), else a tree built for it. */
 std::shared_ptr<const MeshBoxTree> meshBoxTreeOf(const TriangleMesh& mesh);
+
+/**
+ * \brief A slab and a ball around the triangles below one node of a MeshBoxTree: every vertex below lies within
+ * `thick` of the plane through `centre` with unit `normal` and within `radius` of `centre` (rounded up). A node's
+ * box keeps what lies within the pointer radius of its corners; on a finely tessellated surface turned against the
+ * axes that is several times the triangles the slab and ball keep (a patch's box is as deep as it is wide).
+ * A node without a bound has a zero normal and infinite thick and radius. ClodDetector's walk of the tree (crowded
+ * cells, pointers beyond the grid's radius, the deep search) prunes by them; the swept query does not (measured:
+ * fewer triangles tested on pushes over a fine mesh, but 11% slower along the recorded trajectory over it).
+ */
+struct NodeSlab {
+  Vec3 centre = Vec3::Zero();
+  Vec3 normal = Vec3::Zero();
+  double thick = std::numeric_limits<double>::infinity();
+  double radius = std::numeric_limits<double>::infinity();
+};
+
+/** \brief Below this many triangles a node gets a slab (above, a curved surface makes the slab as thick as the box). */
+constexpr std::uint32_t kSlabTriangles = 64;
+
+/** \brief One slab per node of tree (which serves mesh): the nodes with at most kSlabTriangles below, else none. */
+std::vector<NodeSlab> meshTreeSlabs(const MeshBoxTree& tree, const TriangleMesh& mesh);
+
+/**
+ * \brief A lower bound of the squared distance from p to every point below the slab's node: the distance across the
+ * slab and along its plane beyond the ball (each point below is at least that far on each, and they are orthogonal).
+ */
+inline double slabSquaredDistance(const NodeSlab& s, const Vec3& p) {
+  const Vec3 m = p - s.centre;
+  const double h = s.normal.dot(m);
+  const double across = std::max(0.0, std::abs(h) - s.thick);
+  const double along = std::max(0.0, (m - h * s.normal).norm() - s.radius);
+  return across * across + along * along;
+}
 
 }  // namespace clod_haptics
