@@ -160,6 +160,16 @@ std::vector<std::vector<Vec3>> pushes(const Model& m, double speed, int runs, st
   return out;
 }
 
+// The path from its first point in free space on (empty when it has none): the shipped node starts the proxy only
+// once the device is clear of every object (HapticDetector: not touching, outside everything), and a proxy reset
+// within r of a surface stays wedged there (every sweep starts in contact) until the device pulls it out. The fine
+// ellipsoids get no trajectory: the recording placed over their 3 cm box never leaves the ellipsoid's reach.
+std::vector<Vec3> fromFreeSpace(const Model& m, const std::vector<Vec3>& path) {
+  std::size_t i = 0;
+  while (i < path.size() && bruteForceSignedQuery(*m.mesh, path[i], kR).contact) ++i;
+  return std::vector<Vec3>(path.begin() + static_cast<std::ptrdiff_t>(i), path.end());
+}
+
 /** The shipped stylus: r = 2 mm, 400 N/m, no friction, no clamp. */
 ProxyParameters stylus() {
   ProxyParameters params;
@@ -394,8 +404,13 @@ void proxySection(const std::vector<std::string>& sharedPaths, const std::string
     for (double speed : kSpeeds) {
       costs(*m, "pushes-" + num(speed) + "mps", pushes(*m, speed, costRuns, 11), cost, md);
     }
-    if ((m->kind == "shared" || m->kind == "fine") && !trajectory.empty())
-      costs(*m, "trajectory", {placeOver(trajectory, *m->mesh)}, cost, md);
+    if (m->kind == "shared" && !trajectory.empty()) {
+      const std::vector<Vec3> path = fromFreeSpace(*m, placeOver(trajectory, *m->mesh));
+      if (path.empty())
+        std::cout << "  proxy: " << m->name << ": the recording never leaves the model, no trajectory row\n";
+      else
+        costs(*m, "trajectory", {path}, cost, md);
+    }
     std::cout << "  proxy: " << m->name << " costs measured\n" << std::flush;
   }
   md << "\nRun: " << (quick ? "quick" : "full") << ", "

@@ -258,7 +258,7 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
       buildTriangleTrees(m, s, pad_, triangleNodes_, triangleOrder_, triangleRoot_);
     else {
       meshTree_ = meshBoxTreeOf(m);
-      meshSlabs_ = meshTreeSlabs(*meshTree_, m);
+      meshSlabs_ = clod_haptics::meshTreeSlabs(*meshTree_, m);
     }
   }
   // The grid last: its construction peak then meets only the trees kept, not their build's temporaries.

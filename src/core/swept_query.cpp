@@ -296,6 +296,9 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
   }
   // One tree over the mesh, shared: the grid detector's, else the mesh's own when it fits, else built here.
   tree_ = detector_ && detector_->meshTree() ? detector_->meshTree() : meshBoxTreeOf(*mesh_);
+  // Its slabs: the detector's when the tree is its, else computed here.
+  if (!(detector_ && detector_->meshTree() == tree_ && !detector_->meshTreeSlabs().empty()))
+    ownSlabs_ = meshTreeSlabs(*tree_, *mesh_);
 }
 
 const double* SweptSphereQuery::recordOf(std::uint32_t t) const noexcept {
@@ -534,11 +537,13 @@ void SweptSphereQuery::sweepCell(const CellGrid::CellRef& ref, std::uint64_t key
 namespace {
 
 // Where the segment a -> a + d (t in [0, 1]) enters a node's box grown by R, or kNever when it misses it, or when
-// the part of the segment inside that grown box, up to tMax, stays farther than R from the box itself (then
-// farther from its triangles). That part's bounding box is at least as close to the node's box as any of its
-// points (the squared distance of two boxes adds the gaps on each axis, a lower bound of each point's): this drops
-// the nodes beside a sphere sliding over a surface, which the grown box keeps for R on either side of its path.
-inline double enterGrownBox(const BoxNode& n, const Vec3& a, const Vec3& d, double R, double tMax) {
+// the part of the segment inside that grown box, up to tMax, stays farther than R from what lies below the node:
+// from the box itself (that part's bounding box is at least as close to the node's box as any of its points: the
+// squared distance of two boxes adds the gaps on each axis) or from the node's slab and ball (planeBoundMisses on
+// that part, with reach: R and its rounding slack). Both drop the nodes beside a sphere sliding over a surface,
+// which the grown box keeps for R on either side of its path.
+inline double enterNode(const BoxNode& n, const NodeSlab& slab, const Vec3& a, const Vec3& d, double R, double reach,
+                        double tMax) {
   double t0 = 0.0, t1 = 1.0;
   const Vec3 grow = Vec3::Constant(R);
   const Vec3 lo(n.lo[0], n.lo[1], n.lo[2]), hi(n.hi[0], n.hi[1], n.hi[2]);
@@ -547,7 +552,9 @@ inline double enterGrownBox(const BoxNode& n, const Vec3& a, const Vec3& d, doub
   if (t1 < t0) return t0;  // after the best time: the caller skips it
   const Vec3 p0 = a + t0 * d, p1 = a + t1 * d;
   const Vec3 gap = (lo - p0.cwiseMax(p1)).cwiseMax(p0.cwiseMin(p1) - hi).cwiseMax(0.0);
-  return gap.squaredNorm() > R * R ? kNever : t0;
+  if (gap.squaredNorm() > R * R) return kNever;
+  if (!(slab.radius < kNever)) return t0;  // a node without a slab (too much below it)
+  return planeBoundMisses(slab.centre, slab.radius, slab.normal, slab.thick, p0, p1 - p0, reach, 1.0) ? kNever : t0;
 }
 
 }  // namespace
@@ -556,6 +563,7 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
   const std::vector<BoxNode>& nodes = tree_->nodes;
   const std::vector<std::uint32_t>& order = tree_->order;
   if (nodes.empty()) return;
+  const NodeSlab* slabs = ownSlabs_.empty() ? detector_->meshTreeSlabs().data() : ownSlabs_.data();
   // The grown box holds every centre within R of the node's triangles; its rounding is covered by a margin.
   const double grow = R * (1.0 + 1e-12) + 1e-12 * magnitudeOf(a, a + d);
   struct Item {
@@ -564,7 +572,7 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
   };
   Item stack[128];
   int top = 0;
-  const double t = enterGrownBox(nodes[0], a, d, grow, best.toi);
+  const double t = enterNode(nodes[0], slabs[0], a, d, grow, best.reach, best.toi);
   if (t != kNever) stack[top++] = {0, t};
   while (top > 0) {
     const Item item = stack[--top];
@@ -575,8 +583,8 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
       continue;
     }
     const std::uint32_t left = item.node + 1, right = node.first;
-    const double tl = enterGrownBox(nodes[left], a, d, grow, best.toi),
-                 tr = enterGrownBox(nodes[right], a, d, grow, best.toi);
+    const double tl = enterNode(nodes[left], slabs[left], a, d, grow, best.reach, best.toi),
+                 tr = enterNode(nodes[right], slabs[right], a, d, grow, best.reach, best.toi);
     // The nearer child on top of the stack.
     if (tl <= tr) {
       if (tr != kNever) stack[top++] = {right, tr};

@@ -121,6 +121,8 @@ class ClodDetector {
   const std::shared_ptr<const TriangleMesh>& mesh() const { return mesh_; }
   /** \brief The grid level's box tree over the mesh (shared with the mesh and its swept queries); null otherwise. */
   const std::shared_ptr<const MeshBoxTree>& meshTree() const { return meshTree_; }
+  /** \brief The slabs of meshTree()'s nodes (meshTreeSlabs), empty without it. */
+  const std::vector<NodeSlab>& meshTreeSlabs() const { return meshSlabs_; }
   /** \brief The sphere set. */
   const std::shared_ptr<const ClodSphereSet>& spheres() const { return spheres_; }
   /** \brief The fast-level strategy in use. */

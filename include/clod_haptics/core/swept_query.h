@@ -78,7 +78,8 @@ SweptContact bruteForceSweep(const TriangleMesh& mesh, const Vec3& a, const Vec3
  * Larger radii, a mesh without a grid, a sweep longer than 4096 cells, and a sweep that starts in a cell listing
  * more than ClodDetector::kTreeAboveEntries triangles (triangles far smaller than r) walk the box tree over the
  * triangles (MeshBoxTree: the grid detector's, else the mesh's own when it fits, else built here) with the capsule,
- * nearest node first; a node is entered when the part of the sweep inside its box grown by r comes within r of it.
+ * nearest node first; a node is entered when the part of the sweep inside its box grown by r comes within r of the
+ * box and of the node's slab (NodeSlab).
  *
  * Immutable after construction: sweep() is const, allocates nothing, never throws, and may run on many
  * threads at once.
@@ -135,7 +136,9 @@ class SweptSphereQuery {
   std::shared_ptr<const ClodDetector> detector_;
   const CellGrid* grid_ = nullptr;           // the detector's grid, null when it has none
   std::vector<double> records_;  // per triangle: ball (centre, radius), unit normal, thickness, corners (local frame)
-  std::shared_ptr<const MeshBoxTree> tree_;  // box tree over the triangles (local frame), the mesh's when it fits
+  std::shared_ptr<const MeshBoxTree> tree_;
+  std::vector<NodeSlab> ownSlabs_;  // the tree's slabs when the detector does not bring them  // box tree over the
+                                    // triangles (local frame), the mesh's when it fits
 };
 
 }  // namespace clod_haptics
