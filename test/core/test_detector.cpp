@@ -495,26 +495,14 @@ TEST(ClodDetector, GridRegressionTwoTriangles) {
 }
 
 // Triangles far smaller than the radius crowd every cell of the grid with thousands of candidates; such a cell is
-// answered through the tree over the mesh (kTreeAboveEntries). A finely tessellated bumpy sheet at r = 0.08 (edges
+// answered through the tree over the mesh (kTreeAboveEntries). A finely tessellated bumpy sheet at r = 0.16 (edges
 // of 0.1 r): most probes land in a crowded cell, and every answer, with and without a QueryCache, is brute force's.
 TEST(ClodDetector, CrowdedCellsAnswerAsBruteForce) {
-  constexpr int n = 120;
-  std::vector<Vec3> vertices;
-  std::vector<Triangle> triangles;
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i <= n; ++i) {
-      const double x = double(i) / n, y = double(j) / n;
-      vertices.emplace_back(x, y, 0.05 * std::sin(6.0 * x) * std::cos(5.0 * y));
-    }
-  for (std::uint32_t j = 0; j < n; ++j)
-    for (std::uint32_t i = 0; i < n; ++i) {
-      const std::uint32_t a = j * (n + 1) + i;
-      triangles.push_back({a, a + 1, a + n + 2});
-      triangles.push_back({a, a + n + 2, a + n + 1});
-    }
-  const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(vertices, triangles, "bumpy-sheet"));
+  const auto mesh = std::make_shared<const TriangleMesh>(clod_test::heightField(
+      120, [](double x, double y) { return 0.1 * std::sin(3.0 * (x + 1.0)) * std::cos(2.5 * (y + 1.0)); },
+      Eigen::Matrix3d::Identity(), Vec3::Zero()));
   const auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
-  constexpr double r = 0.08;
+  constexpr double r = 0.16;
   const ClodDetector det(mesh, set, FastLevel::Grid, r);
   const CellGrid grid(*mesh, *set, r);  // the grid the detector holds, built again to count its cells
   std::vector<Vec3> probes = nearSurfaceProbes(*mesh, 1500, r, 21);

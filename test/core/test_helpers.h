@@ -26,6 +26,26 @@ namespace clod_test {
 
 using namespace clod_haptics;
 
+/** \brief A finely tessellated surface z = f(x, y) over [-1, 1]^2, n x n squares (two triangles each), turned by
+ * rotation and moved by shift. */
+inline TriangleMesh heightField(int n, double (*f)(double, double), const Eigen::Matrix3d& rotation,
+                                const Vec3& shift) {
+  std::vector<Vec3> vertices;
+  std::vector<Triangle> triangles;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) {
+      const double x = -1.0 + 2.0 * i / n, y = -1.0 + 2.0 * j / n;
+      vertices.push_back(shift + rotation * Vec3(x, y, f(x, y)));
+    }
+  const auto at = [n](int i, int j) { return static_cast<std::uint32_t>(j * (n + 1) + i); };
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      triangles.push_back({at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+      triangles.push_back({at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+    }
+  return makeMesh(std::move(vertices), std::move(triangles), "height field");
+}
+
 /** \brief A fixture with a fresh directory of its own (per process and test), removed after the test. */
 class TempDirTest : public ::testing::Test {
  protected:

@@ -205,21 +205,9 @@ TEST(MeshBoxTree, DamagedTreeInTheCacheFileIsRefused) {
 TEST(MeshBoxTree, SlabsBoundWhatLiesBelowThem) {
   std::vector<std::shared_ptr<const TriangleMesh>> meshes;
   for (const std::string& path : clod_test::sharedMeshes()) meshes.push_back(clod_test::loadNormalized(path));
-  {
-    std::vector<Vec3> v;
-    std::vector<Triangle> t;
-    constexpr std::uint32_t n = 60;
-    for (std::uint32_t j = 0; j <= n; ++j)
-      for (std::uint32_t i = 0; i <= n; ++i)
-        v.emplace_back(3e3 + i * 0.01, -2e3 + j * 0.01, 0.02 * std::sin(0.3 * i) * std::cos(0.2 * j));
-    for (std::uint32_t j = 0; j < n; ++j)
-      for (std::uint32_t i = 0; i < n; ++i) {
-        const std::uint32_t a = j * (n + 1) + i;
-        t.push_back({a, a + 1, a + n + 2});
-        t.push_back({a, a + n + 2, a + n + 1});
-      }
-    meshes.push_back(std::make_shared<const TriangleMesh>(makeMesh(v, t, "far sheet")));
-  }
+  meshes.push_back(std::make_shared<const TriangleMesh>(clod_test::heightField(
+      60, [](double x, double y) { return 0.06 * std::sin(9.0 * x) * std::cos(6.0 * y); }, Eigen::Matrix3d::Identity(),
+      Vec3(3e3, -2e3, 0.0))));
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (const auto& mesh : meshes) {

@@ -404,24 +404,6 @@ TEST(SweptSphereQuery, SameAsBruteForceOnRandomMeshes) {
   }
 }
 
-// A finely tessellated surface z = f(x, y) over [-1, 1]^2, n x n squares, turned by rotation and moved by shift.
-TriangleMesh heightField(int n, double (*f)(double, double), const Eigen::Matrix3d& rotation, const Vec3& shift) {
-  std::vector<Vec3> vertices;
-  std::vector<Triangle> triangles;
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i <= n; ++i) {
-      const double x = -1.0 + 2.0 * i / n, y = -1.0 + 2.0 * j / n;
-      vertices.push_back(shift + rotation * Vec3(x, y, f(x, y)));
-    }
-  const auto at = [n](int i, int j) { return static_cast<std::uint32_t>(j * (n + 1) + i); };
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      triangles.push_back({at(i, j), at(i + 1, j), at(i + 1, j + 1)});
-      triangles.push_back({at(i, j), at(i + 1, j + 1), at(i, j + 1)});
-    }
-  return makeMesh(std::move(vertices), std::move(triangles), "height field");
-}
-
 // A proxy's sweeps: the sphere resting on a finely tessellated surface (its centre at r, or a hair off, from a
 // surface point along the face normal) and moving along it, slightly into it or out of it. Every coplanar or
 // nearly coplanar neighbour is then within a hair of r over the sweep: the grazing cases the query's plane bound
@@ -438,7 +420,7 @@ TEST(SweptSphereQuery, SameAsBruteForceOnTheContactShell) {
   for (int s = 0; s < 4; ++s)
     for (const Vec3& shift : {Vec3(0, 0, 0), Vec3(3e3, -1e3, 2e2)}) {
       const Eigen::Matrix3d rotation = Eigen::AngleAxisd(0.3 + s, randomUnit(rng)).toRotationMatrix();
-      auto mesh = std::make_shared<const TriangleMesh>(heightField(80, shapes[s], rotation, shift));
+      auto mesh = std::make_shared<const TriangleMesh>(clod_test::heightField(80, shapes[s], rotation, shift));
       auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
       const double r = 0.08;  // triangles of 0.025: 3 to 4 across the radius, tens under the ball
       auto detector = std::make_shared<const ClodDetector>(mesh, set, FastLevel::Grid, r);
@@ -474,7 +456,7 @@ TEST(SweptSphereQuery, SameAsBruteForceOnTheContactShell) {
 // sweep inside them). A bumpy height field of 28,800 triangles at r = 0.2 (edges of 0.08 r): random sweeps near it
 // and a proxy's sweeps resting on it, every answer brute force's.
 TEST(SweptSphereQuery, SameAsBruteForceInCrowdedCells) {
-  auto mesh = std::make_shared<const TriangleMesh>(heightField(
+  auto mesh = std::make_shared<const TriangleMesh>(clod_test::heightField(
       120, [](double x, double y) { return 0.1 * std::sin(3.0 * x) * std::cos(2.0 * y); }, Eigen::Matrix3d::Identity(),
       Vec3(0.5, -0.25, 2.0)));
   auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
