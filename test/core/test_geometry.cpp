@@ -6,10 +6,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 
 #include "clod_haptics/core/geometry.h"
+#include "simd/closest_point_avx2.h"
+#include "simd/dispatch.h"
 
 namespace {
 
@@ -396,5 +399,52 @@ TEST(SquaredDistanceToBox, MatchesPerAxisDefinition) {
     ASSERT_DOUBLE_EQ(squaredDistanceToBox(p, mn, mx), ref);
   }
 }
+
+#if defined(CLOD_PACKET_AVX2)
+// The AVX2 kernel of the grid's scan claims closestPointOnTriangle's values bit for bit on every lane it computes
+// (the scalar function is checked against the long-double reference above), and leaves to it only the zero-area
+// fallback: on every kind of triangle of randomCase, four at a time, each region met many times.
+TEST(ClosestPointsAvx2, SameBitsAsTheScalarFunctionOnEveryLaneItComputes) {
+  if (!detail::packetAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937_64 rng(17);
+  int regions[7] = {}, leftOut = 0, leftOutRegular = 0;
+  auto bits = [](double x) {
+    std::uint64_t b;
+    std::memcpy(&b, &x, sizeof b);
+    return b;
+  };
+  for (int i = 0; i < 50000; ++i) {
+    Case k[4];
+    const Vec3 *a[4], *b[4], *c[4];
+    for (int lane = 0; lane < 4; ++lane) {
+      k[lane] = randomCase(rng, i + lane);
+      k[lane].p = k[0].p;  // one point per call, as the scan asks
+      a[lane] = &k[lane].a;
+      b[lane] = &k[lane].b;
+      c[lane] = &k[lane].c;
+    }
+    detail::ClosestPoints4 out;
+    const unsigned computed = detail::closestPointsAvx2(k[0].p, a, b, c, out);
+    for (int lane = 0; lane < 4; ++lane) {
+      if (!(computed & (1u << lane))) {
+        ++leftOut;
+        leftOutRegular += (i + lane) % 7 < 2;
+        continue;
+      }
+      TriangleRegion region;
+      const Vec3 q = closestPointOnTriangle(k[0].p, k[lane].a, k[lane].b, k[lane].c, &region);
+      for (int j = 0; j < 3; ++j) ASSERT_EQ(bits(out.q[j][lane]), bits(q[j])) << "case " << i << " lane " << lane;
+      ASSERT_EQ(bits(out.d2[lane]), bits((k[0].p - q).squaredNorm())) << "case " << i << " lane " << lane;
+      const TriangleRegion got = out.region(static_cast<unsigned>(lane));
+      ASSERT_EQ(got.feature, region.feature) << "case " << i << " lane " << lane;
+      ASSERT_EQ(got.index, region.index) << "case " << i << " lane " << lane;
+      ++regions[static_cast<int>(out.kind[lane])];
+    }
+  }
+  for (int r = 0; r < 7; ++r) EXPECT_GT(regions[r], 1000) << "region " << r << " barely met";
+  EXPECT_GT(leftOut, 0);          // the degenerate kinds do reach the fallback
+  EXPECT_LT(leftOutRegular, 50);  // regular triangles hardly ever
+}
+#endif
 
 }  // namespace
