@@ -332,9 +332,26 @@ void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMod
 }
 
 void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const {
+  const NodeSlab* slabs = meshSlabs_.empty() ? nullptr : meshSlabs_.data();
+  if (mode == DetectionMode::Exact && batchTests()) {  // four at a time, as the grid's scan
+    std::uint32_t batch[4];
+    unsigned held = 0;
+    walkBoxTree(
+        meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2,
+        [&](std::uint32_t t) {
+          batch[held++] = t;
+          if (held == 4) {
+            testGridBatch(batch, held, p, best);
+            held = 0;
+          }
+        },
+        slabs);
+    if (held > 0) testGridBatch(batch, held, p, best);
+    return;
+  }
   walkBoxTree(
       meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2,
-      [&](std::uint32_t t) { testGridTriangle(t, p, mode, best); }, meshSlabs_.empty() ? nullptr : meshSlabs_.data());
+      [&](std::uint32_t t) { testGridTriangle(t, p, mode, best); }, slabs);
 }
 
 // The grid's precise test reads the triangle from the mesh's own arrays (indices, vertices: compact,
@@ -351,6 +368,45 @@ inline void ClodDetector::testGridTriangle(std::uint32_t tri, const Vec3& p, Det
     __builtin_prefetch(normals_ + tri);
     __builtin_prefetch(sphereOfTriangle_.data() + tri);
   }
+}
+
+bool ClodDetector::batchTests() const {
+#if defined(CLOD_PACKET_AVX2)
+  return detail::packetAvx2();
+#else
+  return false;
+#endif
+}
+
+// Four exact tests at once, branch-free (the scalar test's seven regions mispredict on most candidates), with the
+// same values bit for bit (closest_point_avx2.h); a lane that needs the zero-area fallback goes to the scalar test.
+void ClodDetector::testGridBatch(const std::uint32_t* triangles, unsigned count, const Vec3& p, Best& best) const {
+#if defined(CLOD_PACKET_AVX2)
+  const Vec3 *a[4], *b[4], *c[4];
+  for (unsigned k = 0; k < 4; ++k) {
+    const Triangle& t = triangleIndex_[triangles[std::min(k, count - 1)]];
+    a[k] = vertices_ + t[0];
+    b[k] = vertices_ + t[1];
+    c[k] = vertices_ + t[2];
+  }
+  detail::ClosestPoints4 q;
+  const unsigned computed = detail::closestPointsAvx2(p, a, b, c, q);
+  for (unsigned k = 0; k < count; ++k) {
+    if (!(computed & (1u << k))) {
+      testGridTriangle(triangles[k], p, DetectionMode::Exact, best);
+      continue;
+    }
+    ++best.tested;
+    if (!(q.d2[k] <= best.d2)) continue;  // farther than the best: offer would refuse it
+    const TriangleRegion region = q.region(k);
+    if (best.offer(q.d2[k], triangles[k], kNone, Vec3(q.q[0][k], q.q[1][k], q.q[2][k]), &region)) {
+      __builtin_prefetch(normals_ + triangles[k]);
+      __builtin_prefetch(sphereOfTriangle_.data() + triangles[k]);
+    }
+  }
+#else
+  for (unsigned k = 0; k < count; ++k) testGridTriangle(triangles[k], p, DetectionMode::Exact, best);
+#endif
 }
 
 void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const {
@@ -389,51 +445,26 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   // The stored directions are scaled by 127; scaling rel instead saves a multiplication per entry.
   const double rx = rel.x() * (1.0 / 127.0), ry = rel.y() * (1.0 / 127.0), rz = rel.z() * (1.0 / 127.0);
   const CellGrid::Entry* e = cell.entries;
-#if defined(CLOD_PACKET_AVX2)
-  // Exact mode: the candidates that pass the bounds are tested four at a time, branch-free (the scalar test's
-  // seven regions mispredict on most of them), with the same values bit for bit (closest_point_avx2.h); the
-  // bounds are judged against the best as it stood before the batch, so a batch may test a candidate the scalar
-  // scan would have skipped, never the reverse.
-  if (mode == DetectionMode::Exact && detail::packetAvx2()) {
+  // Exact mode: the candidates that pass the bounds are tested four at a time (testGridBatch); the bounds are judged
+  // against the best as it stood before the batch, so a batch may test a candidate the one-by-one scan would have
+  // skipped, never the reverse.
+  if (mode == DetectionMode::Exact && batchTests()) {
     std::uint32_t batch[4];
     unsigned held = 0;
-    auto flush = [&]() {
-      const Vec3 *a[4], *b[4], *c[4];
-      for (unsigned k = 0; k < 4; ++k) {
-        const Triangle& t = triangleIndex_[batch[std::min(k, held - 1)]];
-        a[k] = vertices_ + t[0];
-        b[k] = vertices_ + t[1];
-        c[k] = vertices_ + t[2];
-      }
-      detail::ClosestPoints4 q;
-      const unsigned computed = detail::closestPointsAvx2(p, a, b, c, q);
-      for (unsigned k = 0; k < held; ++k) {
-        if (!(computed & (1u << k))) {  // a zero-area case: the scalar function's fallback
-          testGridTriangle(batch[k], p, mode, best);
-          continue;
-        }
-        ++best.tested;
-        if (!(q.d2[k] <= best.d2)) continue;  // farther than the best: offer would refuse it
-        const TriangleRegion region = q.region(k);
-        if (best.offer(q.d2[k], batch[k], kNone, Vec3(q.q[0][k], q.q[1][k], q.q[2][k]), &region)) {
-          __builtin_prefetch(normals_ + batch[k]);
-          __builtin_prefetch(sphereOfTriangle_.data() + batch[k]);
-        }
-      }
-      held = 0;
-    };
     for (std::uint32_t i = 0; i < cell.count; ++i) {
       const double dc = e[i].distance * unit;
       if (dc - offset > best.reach) break;
       const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
       if (bound - slack > best.reach) continue;
       batch[held++] = e[i].triangle;
-      if (held == 4) flush();
+      if (held == 4) {
+        testGridBatch(batch, held, p, best);
+        held = 0;
+      }
     }
-    if (held > 0) flush();
+    if (held > 0) testGridBatch(batch, held, p, best);
     return;
   }
-#endif
   for (std::uint32_t i = 0; i < cell.count; ++i) {
     const double dc = e[i].distance * unit;
     // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
