@@ -76,6 +76,26 @@ inline bool closestFor(DetectionMode mode, const Vec3& p, const Vec3& a, const V
 
 namespace {
 constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+
+// Gathers triangles four at a time for a batch test (flush(triangles, count), count in 1..4).
+template <class Flush>
+class Batch4 {
+ public:
+  explicit Batch4(Flush flush) : flush_(flush) {}
+  void add(std::uint32_t triangle) {
+    held_[count_++] = triangle;
+    if (count_ == 4) finish();
+  }
+  void finish() {
+    if (count_ > 0) flush_(held_, count_);
+    count_ = 0;
+  }
+
+ private:
+  Flush flush_;
+  std::uint32_t held_[4];
+  unsigned count_ = 0;
+};
 constexpr std::size_t kRecord = 13;  // doubles per triangle record: ball (4), corners (9)
 
 // Detector ids: 64 bits counted from 1 do not wrap in the life of a process.
@@ -334,19 +354,10 @@ void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMod
 void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const {
   const NodeSlab* slabs = meshSlabs_.empty() ? nullptr : meshSlabs_.data();
   if (mode == DetectionMode::Exact && batchTests()) {  // four at a time, as the grid's scan
-    std::uint32_t batch[4];
-    unsigned held = 0;
+    Batch4 batch([&](const std::uint32_t* t, unsigned count) { testGridBatch(t, count, p, best); });
     walkBoxTree(
-        meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2,
-        [&](std::uint32_t t) {
-          batch[held++] = t;
-          if (held == 4) {
-            testGridBatch(batch, held, p, best);
-            held = 0;
-          }
-        },
-        slabs);
-    if (held > 0) testGridBatch(batch, held, p, best);
+        meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2, [&](std::uint32_t t) { batch.add(t); }, slabs);
+    batch.finish();
     return;
   }
   walkBoxTree(
@@ -449,20 +460,15 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   // against the best as it stood before the batch, so a batch may test a candidate the one-by-one scan would have
   // skipped, never the reverse.
   if (mode == DetectionMode::Exact && batchTests()) {
-    std::uint32_t batch[4];
-    unsigned held = 0;
+    Batch4 batch([&](const std::uint32_t* t, unsigned count) { testGridBatch(t, count, p, best); });
     for (std::uint32_t i = 0; i < cell.count; ++i) {
       const double dc = e[i].distance * unit;
       if (dc - offset > best.reach) break;
       const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
       if (bound - slack > best.reach) continue;
-      batch[held++] = e[i].triangle;
-      if (held == 4) {
-        testGridBatch(batch, held, p, best);
-        held = 0;
-      }
+      batch.add(e[i].triangle);
     }
-    if (held > 0) testGridBatch(batch, held, p, best);
+    batch.finish();
     return;
   }
   for (std::uint32_t i = 0; i < cell.count; ++i) {
