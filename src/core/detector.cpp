@@ -626,7 +626,19 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
   }
   if (!box.contains(p)) return;
   const double diagonal = box.diagonal().norm();
-  // One walk of the tree over the mesh finds the nearest within the diagonal.
+  // One walk of the tree over the mesh finds the nearest within the diagonal. The last answer's triangle is tested
+  // first: a push moves little between two queries, so it is near the nearest, and its distance prunes the walk
+  // from the root on (from the diagonal alone the walk reads every node nearer than the first leaf it reaches).
+  if (meshTree_ && !meshTree_->nodes.empty() && (grid_.empty() || diagonal > grid_.radius())) {
+    best.d2 = diagonal * diagonal;
+    best.reach = diagonal;
+    best.found = false;
+    if (cache != nullptr && cache->owner == id_ && cache->lastTriangle >= 0 &&
+        static_cast<std::size_t>(cache->lastTriangle) < mesh_->size())
+      testGridTriangle(static_cast<std::uint32_t>(cache->lastTriangle), p, mode, best);
+    preciseMeshTree(p, mode, best);
+    return;
+  }
   if (meshTree_ && !meshTree_->nodes.empty()) {
     search(p, diagonal, mode, best, cache);
     return;
