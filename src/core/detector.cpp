@@ -77,14 +77,16 @@ inline bool closestFor(DetectionMode mode, const Vec3& p, const Vec3& a, const V
 namespace {
 constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
 
-// Gathers triangles four at a time for a batch test (flush(triangles, count), count in 1..4).
+constexpr std::size_t kRecord = 13;  // doubles per triangle record: ball (4), corners (9)
+
+// Gathers triangles for a batch test, capacity (1 to 4) at a time: flush(triangles, count), count in 1..capacity.
 template <class Flush>
-class Batch4 {
+class TriangleBatch {
  public:
-  explicit Batch4(Flush flush) : flush_(flush) {}
+  TriangleBatch(unsigned capacity, Flush flush) : capacity_(capacity), flush_(flush) {}
   void add(std::uint32_t triangle) {
     held_[count_++] = triangle;
-    if (count_ == 4) finish();
+    if (count_ == capacity_) finish();
   }
   void finish() {
     if (count_ > 0) flush_(held_, count_);
@@ -92,11 +94,11 @@ class Batch4 {
   }
 
  private:
+  unsigned capacity_;
   Flush flush_;
   std::uint32_t held_[4];
   unsigned count_ = 0;
 };
-constexpr std::size_t kRecord = 13;  // doubles per triangle record: ball (4), corners (9)
 
 // Detector ids: 64 bits counted from 1 do not wrap in the life of a process.
 std::uint64_t nextDetectorId() {
@@ -352,17 +354,12 @@ void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMod
 }
 
 void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const {
-  const NodeSlab* slabs = meshSlabs_.empty() ? nullptr : meshSlabs_.data();
-  if (mode == DetectionMode::Exact && batchTests()) {  // four at a time, as the grid's scan
-    Batch4 batch([&](const std::uint32_t* t, unsigned count) { testGridBatch(t, count, p, best); });
-    walkBoxTree(
-        meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2, [&](std::uint32_t t) { batch.add(t); }, slabs);
-    batch.finish();
-    return;
-  }
+  TriangleBatch batch(batchSize(mode),
+                      [&](const std::uint32_t* t, unsigned count) { testGridBatch(t, count, p, mode, best); });
   walkBoxTree(
-      meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2,
-      [&](std::uint32_t t) { testGridTriangle(t, p, mode, best); }, slabs);
+      meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2, [&](std::uint32_t t) { batch.add(t); },
+      meshSlabs_.empty() ? nullptr : meshSlabs_.data());
+  batch.finish();
 }
 
 // The grid's precise test reads the triangle from the mesh's own arrays (indices, vertices: compact,
@@ -381,43 +378,48 @@ inline void ClodDetector::testGridTriangle(std::uint32_t tri, const Vec3& p, Det
   }
 }
 
-bool ClodDetector::batchTests() const {
+unsigned ClodDetector::batchSize(DetectionMode mode) const {
 #if defined(CLOD_PACKET_AVX2)
-  return detail::packetAvx2();
+  return mode == DetectionMode::Exact && detail::packetAvx2() ? 4 : 1;
 #else
-  return false;
+  (void)mode;
+  return 1;
 #endif
 }
 
 // Four exact tests at once, branch-free (the scalar test's seven regions mispredict on most candidates), with the
 // same values bit for bit (closest_point_avx2.h); a lane that needs the zero-area fallback goes to the scalar test.
-void ClodDetector::testGridBatch(const std::uint32_t* triangles, unsigned count, const Vec3& p, Best& best) const {
+// One by one (testGridTriangle) where batchSize(mode) is 1 (paper mode, or no AVX2).
+void ClodDetector::testGridBatch(const std::uint32_t* triangles, unsigned count, const Vec3& p, DetectionMode mode,
+                                 Best& best) const {
 #if defined(CLOD_PACKET_AVX2)
-  const Vec3 *a[4], *b[4], *c[4];
-  for (unsigned k = 0; k < 4; ++k) {
-    const Triangle& t = triangleIndex_[triangles[std::min(k, count - 1)]];
-    a[k] = vertices_ + t[0];
-    b[k] = vertices_ + t[1];
-    c[k] = vertices_ + t[2];
-  }
-  detail::ClosestPoints4 q;
-  const unsigned computed = detail::closestPointsAvx2(p, a, b, c, q);
-  for (unsigned k = 0; k < count; ++k) {
-    if (!(computed & (1u << k))) {
-      testGridTriangle(triangles[k], p, DetectionMode::Exact, best);
-      continue;
+  if (batchSize(mode) > 1) {
+    const Vec3 *a[4], *b[4], *c[4];
+    for (unsigned k = 0; k < 4; ++k) {
+      const Triangle& t = triangleIndex_[triangles[std::min(k, count - 1)]];
+      a[k] = vertices_ + t[0];
+      b[k] = vertices_ + t[1];
+      c[k] = vertices_ + t[2];
     }
-    ++best.tested;
-    if (!(q.d2[k] <= best.d2)) continue;  // farther than the best: offer would refuse it
-    const TriangleRegion region = q.region(k);
-    if (best.offer(q.d2[k], triangles[k], kNone, Vec3(q.q[0][k], q.q[1][k], q.q[2][k]), &region)) {
-      __builtin_prefetch(normals_ + triangles[k]);
-      __builtin_prefetch(sphereOfTriangle_.data() + triangles[k]);
+    detail::ClosestPoints4 q;
+    const unsigned computed = detail::closestPointsAvx2(p, a, b, c, q);
+    for (unsigned k = 0; k < count; ++k) {
+      if (!(computed & (1u << k))) {
+        testGridTriangle(triangles[k], p, mode, best);
+        continue;
+      }
+      ++best.tested;
+      if (!(q.d2[k] <= best.d2)) continue;  // farther than the best: offer would refuse it
+      const TriangleRegion region = q.region(k);
+      if (best.offer(q.d2[k], triangles[k], kNone, Vec3(q.q[0][k], q.q[1][k], q.q[2][k]), &region)) {
+        __builtin_prefetch(normals_ + triangles[k]);
+        __builtin_prefetch(sphereOfTriangle_.data() + triangles[k]);
+      }
     }
+    return;
   }
-#else
-  for (unsigned k = 0; k < count; ++k) testGridTriangle(triangles[k], p, DetectionMode::Exact, best);
 #endif
+  for (unsigned k = 0; k < count; ++k) testGridTriangle(triangles[k], p, mode, best);
 }
 
 void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const {
@@ -456,21 +458,11 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   // The stored directions are scaled by 127; scaling rel instead saves a multiplication per entry.
   const double rx = rel.x() * (1.0 / 127.0), ry = rel.y() * (1.0 / 127.0), rz = rel.z() * (1.0 / 127.0);
   const CellGrid::Entry* e = cell.entries;
-  // Exact mode: the candidates that pass the bounds are tested four at a time (testGridBatch); the bounds are judged
-  // against the best as it stood before the batch, so a batch may test a candidate the one-by-one scan would have
-  // skipped, never the reverse.
-  if (mode == DetectionMode::Exact && batchTests()) {
-    Batch4 batch([&](const std::uint32_t* t, unsigned count) { testGridBatch(t, count, p, best); });
-    for (std::uint32_t i = 0; i < cell.count; ++i) {
-      const double dc = e[i].distance * unit;
-      if (dc - offset > best.reach) break;
-      const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
-      if (bound - slack > best.reach) continue;
-      batch.add(e[i].triangle);
-    }
-    batch.finish();
-    return;
-  }
+  // Exact mode with AVX2: the candidates that pass the bounds are tested four at a time (testGridBatch); the bounds
+  // are judged against the best as it stood before the batch, so a batch may test a candidate the one-by-one scan
+  // would have skipped, never the reverse.
+  TriangleBatch batch(batchSize(mode),
+                      [&](const std::uint32_t* t, unsigned count) { testGridBatch(t, count, p, mode, best); });
   for (std::uint32_t i = 0; i < cell.count; ++i) {
     const double dc = e[i].distance * unit;
     // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
@@ -478,8 +470,9 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
     // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.
     const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
     if (bound - slack > best.reach) continue;
-    testGridTriangle(e[i].triangle, p, mode, best);  // the sphere is looked up once, for the answer
+    batch.add(e[i].triangle);  // the sphere is looked up once, for the answer
   }
+  batch.finish();
 }
 
 template <class Visit>

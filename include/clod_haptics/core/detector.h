@@ -158,9 +158,10 @@ class ClodDetector {
   void preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
   void testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
   void testGridTriangle(std::uint32_t tri, const Vec3& p, DetectionMode mode, Best& best) const;
-  // Exact mode, AVX2: testGridTriangle on up to four triangles at once (count in 1..4).
-  void testGridBatch(const std::uint32_t* triangles, unsigned count, const Vec3& p, Best& best) const;
-  bool batchTests() const;  // whether the exact scans test in batches (AVX2 on this CPU)
+  // testGridTriangle on count (1..batchSize(mode)) triangles: four at a time in AVX2 for the exact mode.
+  void testGridBatch(const std::uint32_t* triangles, unsigned count, const Vec3& p, DetectionMode mode,
+                     Best& best) const;
+  unsigned batchSize(DetectionMode mode) const;  // 4 for the exact mode where the CPU runs AVX2, else 1
   void preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const;
   void preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const;
   // The stages of query(): the spheres mode; the nearest triangle within radius; the growing search of a deep
