@@ -646,6 +646,7 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
   const CellTables tables = packCells(mesh, set, figures, layout, sliceCandidates, distanceUnit_, entries_);
   entries_.shrink();
   cellCount_ = tables.keys.size();
+  for (const std::uint64_t header : tables.headers) largest_ = std::max(largest_, entries_[header].triangle);
   std::vector<CellRef> refs(cellCount_);
   const SlabBuilder slabs(mesh, h, radius, figures.pad, unit_);
   auto fill = [&](std::size_t begin, std::size_t end) {

@@ -112,6 +112,7 @@ CellGrid CellGrid::readFrom(detail::ByteReader& in, std::size_t triangles) {
     if (cell >= cells) in.fail("more cells in the entries than the cell count");
     if (count == 0 || count > n - at - 1 || spheres == 0 || spheres > count)
       in.fail("cell " + std::to_string(cell) + ": header out of range");
+    g.largest_ = std::max(g.largest_, count);
     if (dense) {
       if (g.headers_[cell] != at) in.fail("cell " + std::to_string(cell) + ": index header does not match the entries");
     } else {

@@ -306,6 +306,8 @@ const double* SweptSphereQuery::recordOf(std::uint32_t t) const noexcept {
 }
 
 bool SweptSphereQuery::crowdedAt(const Vec3& local) const noexcept {
+  // Most grids have no crowded cell at all: then no lookup.
+  if (grid_->largestCell() <= ClodDetector::kTreeAboveEntries) return false;
   const CellGrid::CellRef* ref = grid_->find(grid_->keyOf(local));
   return ref != nullptr && grid_->cell(*ref).count > ClodDetector::kTreeAboveEntries;
 }

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <set>
@@ -173,6 +174,36 @@ TEST(CellGrid, DenseAndHashedIndexAgree) {
     EXPECT_GT(found, 1000u);
     // And the hashed grid keeps the contract too.
     checkGrid(*mesh, hashed, probesNear(*mesh, 0.01, 13), std::string(name) + " hashed");
+  }
+}
+
+// largestCell, which the swept query reads to skip a cell lookup on grids without a crowded cell, is the count of
+// the most crowded cell, found here by visiting every cell of the box the candidates can lie in.
+TEST(CellGrid, LargestCellIsTheMostCrowdedCell) {
+  for (const char* name : {"head.off", "mesh_with_border.off"}) {
+    SCOPED_TRACE(name);
+    const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
+    const ClodSphereSet set = ClodBuilder(mesh).build(0.02);
+    for (double r : {0.005, 0.02}) {
+      const CellGrid grid(*mesh, set, r);
+      const double margin = grid.radius() + 2.0 * grid.cellSize();
+      std::int64_t lo[3], hi[3];
+      grid.cellCoordinates(mesh->bounds().min() - Vec3::Constant(margin), lo);
+      grid.cellCoordinates(mesh->bounds().max() + Vec3::Constant(margin), hi);
+      std::uint32_t largest = 0;
+      std::size_t cells = 0;
+      for (std::int64_t z = lo[2]; z <= hi[2]; ++z)
+        for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
+          for (std::int64_t x = lo[0]; x <= hi[0]; ++x) {
+            const CellGrid::CellRef* ref = grid.find(grid.keyAt(x, y, z));
+            if (ref == nullptr) continue;
+            ++cells;
+            largest = std::max(largest, grid.cell(*ref).count);
+          }
+      EXPECT_EQ(cells, grid.cells());  // every cell visited
+      EXPECT_GT(largest, 0u);
+      EXPECT_EQ(grid.largestCell(), largest);
+    }
   }
 }
 

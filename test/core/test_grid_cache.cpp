@@ -119,6 +119,7 @@ void roundTrip(const Level& l, const std::string& label) {
     EXPECT_EQ(read.dense(), grid.dense());
     EXPECT_EQ(read.cells(), grid.cells());
     EXPECT_EQ(read.entries(), grid.entries());
+    EXPECT_EQ(read.largestCell(), grid.largestCell());
     const ClodDetector built(l.mesh, l.set, FastLevel::Grid, key.radius, [&](double) {
       return CellGrid(*l.mesh, *l.set, key.radius, key.entriesPerTriangle, index);
     });

@@ -181,6 +181,8 @@ class CellGrid {
   /** \brief Number of stored cells and candidates (for statistics). */
   std::size_t cells() const { return cellCount_; }
   std::size_t entries() const { return entries_.size() - cellCount_; }
+  /** \brief Candidates of the most crowded cell (derived from the cells, at the build and when read). */
+  std::uint32_t largestCell() const { return largest_; }
   /** \brief Bytes held by the grid's arrays. */
   std::size_t bytes() const;
 
@@ -307,6 +309,7 @@ class CellGrid {
   Vec3 origin_ = Vec3::Zero();
   std::int64_t dims_[3] = {0, 0, 0};
   std::size_t cellCount_ = 0;
+  std::uint32_t largest_ = 0;  // candidates of the most crowded cell
   // Per cell: a header (triangle = count, the next 4 bytes = spheres), then its candidates.
   detail::ReallocArray<Entry> entries_;
   std::vector<Word> words_;             // dense index
