@@ -4,24 +4,16 @@
 
 #include <immintrin.h>
 
+#include "avx2_ops.h"
+
 namespace clod_haptics {
 namespace detail {
 
 namespace {
 
-#define CLOD_AVX2 __attribute__((target("avx2"))) inline
+using namespace avx2;
 
-CLOD_AVX2 __m256d add(__m256d x, __m256d y) { return _mm256_add_pd(x, y); }
-CLOD_AVX2 __m256d sub(__m256d x, __m256d y) { return _mm256_sub_pd(x, y); }
-CLOD_AVX2 __m256d mul(__m256d x, __m256d y) { return _mm256_mul_pd(x, y); }
-CLOD_AVX2 __m256d le(__m256d x, __m256d y) { return _mm256_cmp_pd(x, y, _CMP_LE_OQ); }
-CLOD_AVX2 __m256d ge(__m256d x, __m256d y) { return _mm256_cmp_pd(x, y, _CMP_GE_OQ); }
-CLOD_AVX2 __m256d gt(__m256d x, __m256d y) { return _mm256_cmp_pd(x, y, _CMP_GT_OQ); }
-CLOD_AVX2 __m256d both(__m256d x, __m256d y) { return _mm256_and_pd(x, y); }
-CLOD_AVX2 __m256d either(__m256d x, __m256d y) { return _mm256_or_pd(x, y); }
-CLOD_AVX2 __m256d butNot(__m256d x, __m256d notThis) { return _mm256_andnot_pd(notThis, x); }
-// mask ? y : x
-CLOD_AVX2 __m256d pick(__m256d x, __m256d y, __m256d mask) { return _mm256_blendv_pd(x, y, mask); }
+#define CLOD_AVX2 __attribute__((target("avx2"))) inline
 
 /** Three coordinates of four points, one register each. */
 struct V3 {
@@ -32,10 +24,10 @@ CLOD_AVX2 V3 load(const Vec3* const v[4]) {
           _mm256_set_pd(v[3]->y(), v[2]->y(), v[1]->y(), v[0]->y()),
           _mm256_set_pd(v[3]->z(), v[2]->z(), v[1]->z(), v[0]->z())};
 }
-CLOD_AVX2 V3 sub(const V3& u, const V3& v) { return {sub(u.x, v.x), sub(u.y, v.y), sub(u.z, v.z)}; }
-// (x0 y0 + x1 y1) + x2 y2: Eigen's order for a 3-vector dot product.
-CLOD_AVX2 __m256d dot(const V3& u, const V3& v) { return add(add(mul(u.x, v.x), mul(u.y, v.y)), mul(u.z, v.z)); }
-CLOD_AVX2 V3 pick(const V3& u, const V3& v, __m256d mask) {
+CLOD_AVX2 V3 difference(const V3& u, const V3& v) { return {minus(u.x, v.x), minus(u.y, v.y), minus(u.z, v.z)}; }
+CLOD_AVX2 __m256d dot(const V3& u, const V3& v) { return dot3(u.x, v.x, u.y, v.y, u.z, v.z); }
+// mask ? v : u, lane by lane.
+CLOD_AVX2 V3 choose(const V3& u, const V3& v, __m256d mask) {
   return {pick(u.x, v.x, mask), pick(u.y, v.y, mask), pick(u.z, v.z, mask)};
 }
 
@@ -43,6 +35,7 @@ constexpr int kVertexA = ClosestPoints4::kVertexA, kVertexB = ClosestPoints4::kV
               kEdgeAB = ClosestPoints4::kEdgeAB, kVertexC = ClosestPoints4::kVertexC, kEdgeAC = ClosestPoints4::kEdgeAC,
               kEdgeBC = ClosestPoints4::kEdgeBC;
 
+#undef CLOD_AVX2
 }  // namespace
 
 __attribute__((target("avx2"))) unsigned closestPointsAvx2(const Vec3& p, const Vec3* const a[4],
@@ -51,21 +44,22 @@ __attribute__((target("avx2"))) unsigned closestPointsAvx2(const Vec3& p, const 
   const V3 A = load(a), B = load(b), C = load(c);
   const V3 P{_mm256_set1_pd(p.x()), _mm256_set1_pd(p.y()), _mm256_set1_pd(p.z())};
   const __m256d zero = _mm256_setzero_pd();
-  const V3 ab = sub(B, A), ac = sub(C, A), ap = sub(P, A), bp = sub(P, B), cp = sub(P, C);
+  const V3 ab = difference(B, A), ac = difference(C, A), ap = difference(P, A), bp = difference(P, B),
+           cp = difference(P, C);
   const __m256d d1 = dot(ab, ap), d2 = dot(ac, ap), d3 = dot(ab, bp), d4 = dot(ac, bp), d5 = dot(ab, cp),
                 d6 = dot(ac, cp);
-  const __m256d vc = sub(mul(d1, d4), mul(d3, d2));
-  const __m256d vb = sub(mul(d5, d2), mul(d1, d6));
-  const __m256d va = sub(mul(d3, d6), mul(d5, d4));
-  const __m256d d43 = sub(d4, d3), d56 = sub(d5, d6);
+  const __m256d vc = minus(times(d1, d4), times(d3, d2));
+  const __m256d vb = minus(times(d5, d2), times(d1, d6));
+  const __m256d va = minus(times(d3, d6), times(d5, d4));
+  const __m256d d43 = minus(d4, d3), d56 = minus(d5, d6);
   // The scalar function's regions in its order: each lane takes the first whose test it passes.
   const __m256d tests[6] = {
-      both(le(d1, zero), le(d2, zero)),                        // vertex a
-      both(ge(d3, zero), le(d4, d3)),                          // vertex b
-      both(both(le(vc, zero), ge(d1, zero)), le(d3, zero)),    // edge ab
-      both(ge(d6, zero), le(d5, d6)),                          // vertex c
-      both(both(le(vb, zero), ge(d2, zero)), le(d6, zero)),    // edge ac
-      both(both(le(va, zero), ge(d43, zero)), ge(d56, zero)),  // edge bc
+      both(lessEqual(d1, zero), lessEqual(d2, zero)),                                     // vertex a
+      both(greaterEqual(d3, zero), lessEqual(d4, d3)),                                    // vertex b
+      both(both(lessEqual(vc, zero), greaterEqual(d1, zero)), lessEqual(d3, zero)),       // edge ab
+      both(greaterEqual(d6, zero), lessEqual(d5, d6)),                                    // vertex c
+      both(both(lessEqual(vb, zero), greaterEqual(d2, zero)), lessEqual(d6, zero)),       // edge ac
+      both(both(lessEqual(va, zero), greaterEqual(d43, zero)), greaterEqual(d56, zero)),  // edge bc
   };
   __m256d taken = zero, in[6];
   for (int k = 0; k < 6; ++k) {
@@ -74,8 +68,8 @@ __attribute__((target("avx2"))) unsigned closestPointsAvx2(const Vec3& p, const 
   }
   const __m256d face = butNot(_mm256_castsi256_pd(_mm256_set1_epi64x(-1)), taken);
   // One division for every lane: an edge's parameter num / den, the face's 1 / sum.
-  const __m256d sum = add(add(va, vb), vc);
-  const __m256d denAB = sub(d1, d3), denAC = sub(d2, d6), denBC = add(d43, d56);
+  const __m256d sum = plus(plus(va, vb), vc);
+  const __m256d denAB = minus(d1, d3), denAC = minus(d2, d6), denBC = plus(d43, d56);
   __m256d num = pick(pick(_mm256_set1_pd(1.0), d43, in[kEdgeBC]), d2, in[kEdgeAC]);
   num = pick(num, d1, in[kEdgeAB]);
   __m256d den = pick(pick(sum, denBC, in[kEdgeBC]), denAC, in[kEdgeAC]);
@@ -83,24 +77,25 @@ __attribute__((target("avx2"))) unsigned closestPointsAvx2(const Vec3& p, const 
   // The fallback to the edges (closestOnEdges): an edge whose denominator is not positive, a face whose sum is
   // not above 1e-14 |ab|^2 |ac|^2 or not finite (sum - sum is 0 only for a finite sum).
   const __m256d edge = either(either(in[kEdgeAB], in[kEdgeAC]), in[kEdgeBC]);
-  const __m256d scale = mul(dot(ab, ab), dot(ac, ac));
+  const __m256d scale = times(dot(ab, ab), dot(ac, ac));
   const __m256d faceOk =
-      both(gt(sum, mul(_mm256_set1_pd(1e-14), scale)), _mm256_cmp_pd(sub(sum, sum), zero, _CMP_EQ_OQ));
-  const __m256d fallback = either(butNot(edge, gt(den, zero)), butNot(face, faceOk));
+      both(greaterThan(sum, times(_mm256_set1_pd(1e-14), scale)), _mm256_cmp_pd(minus(sum, sum), zero, _CMP_EQ_OQ));
+  const __m256d fallback = either(butNot(edge, greaterThan(den, zero)), butNot(face, faceOk));
   const __m256d ratio = _mm256_div_pd(num, pick(_mm256_set1_pd(1.0), den, either(edge, face)));
   // Edges: base + t dir (a + t ab, a + t ac, b + t (c - b)).
-  const V3 base = pick(A, B, in[kEdgeBC]);
-  const V3 dir = pick(pick(sub(C, B), ac, in[kEdgeAC]), ab, in[kEdgeAB]);
-  const V3 onEdge{add(base.x, mul(ratio, dir.x)), add(base.y, mul(ratio, dir.y)), add(base.z, mul(ratio, dir.z))};
+  const V3 base = choose(A, B, in[kEdgeBC]);
+  const V3 dir = choose(choose(difference(C, B), ac, in[kEdgeAC]), ab, in[kEdgeAB]);
+  const V3 onEdge{plus(base.x, times(ratio, dir.x)), plus(base.y, times(ratio, dir.y)),
+                  plus(base.z, times(ratio, dir.z))};
   // Face: a + ab (vb / sum) + ac (vc / sum), as (a + ab s) + ac t.
-  const __m256d s = mul(vb, ratio), t = mul(vc, ratio);
-  const V3 onFace{add(add(A.x, mul(ab.x, s)), mul(ac.x, t)), add(add(A.y, mul(ab.y, s)), mul(ac.y, t)),
-                  add(add(A.z, mul(ab.z, s)), mul(ac.z, t))};
-  V3 q = pick(onFace, onEdge, edge);
-  q = pick(q, A, in[kVertexA]);
-  q = pick(q, B, in[kVertexB]);
-  q = pick(q, C, in[kVertexC]);
-  const V3 w = sub(P, q);
+  const __m256d s = times(vb, ratio), t = times(vc, ratio);
+  const V3 onFace{plus(plus(A.x, times(ab.x, s)), times(ac.x, t)), plus(plus(A.y, times(ab.y, s)), times(ac.y, t)),
+                  plus(plus(A.z, times(ab.z, s)), times(ac.z, t))};
+  V3 q = choose(onFace, onEdge, edge);
+  q = choose(q, A, in[kVertexA]);
+  q = choose(q, B, in[kVertexB]);
+  q = choose(q, C, in[kVertexC]);
+  const V3 w = difference(P, q);
   _mm256_storeu_pd(out.q[0], q.x);
   _mm256_storeu_pd(out.q[1], q.y);
   _mm256_storeu_pd(out.q[2], q.z);

@@ -6,10 +6,13 @@
 
 #include <limits>
 
+#include "avx2_ops.h"
+
 namespace clod_haptics {
 namespace detail {
 
 namespace {
+using namespace avx2;
 constexpr int W = PacketCull::kRays;
 static_assert(W == 16, "four registers of four doubles, or two of eight floats");
 
@@ -17,38 +20,11 @@ static_assert(W == 16, "four registers of four doubles, or two of eight floats")
 
 // The lanes that meet the box (entry t0 <= exit t1) and pass PacketCull::keeps (lower: the normals' lower
 // bound less the slack), four doubles or eight floats at a time: the rule once for both precisions.
-CLOD_AVX2 __m256d lessThan(__m256d a, __m256d b) { return _mm256_cmp_pd(a, b, _CMP_LT_OQ); }
-CLOD_AVX2 __m256 lessThan(__m256 a, __m256 b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
-CLOD_AVX2 __m256d lessEqual(__m256d a, __m256d b) { return _mm256_cmp_pd(a, b, _CMP_LE_OQ); }
-CLOD_AVX2 __m256 lessEqual(__m256 a, __m256 b) { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
-CLOD_AVX2 __m256d both(__m256d a, __m256d b) { return _mm256_and_pd(a, b); }
-CLOD_AVX2 __m256 both(__m256 a, __m256 b) { return _mm256_and_ps(a, b); }
-CLOD_AVX2 __m256d either(__m256d a, __m256d b) { return _mm256_or_pd(a, b); }
-CLOD_AVX2 __m256 either(__m256 a, __m256 b) { return _mm256_or_ps(a, b); }
-CLOD_AVX2 unsigned bits(__m256d a) { return static_cast<unsigned>(_mm256_movemask_pd(a)); }
-CLOD_AVX2 unsigned bits(__m256 a) { return static_cast<unsigned>(_mm256_movemask_ps(a)); }
 template <class V>
 CLOD_AVX2 unsigned keptBits(V lower, V t0, V t1, V cap, V below, V nearBelow, V within) {
   const V near = both(lessThan(lower, nearBelow), lessEqual(t0, within));
   return bits(both(lessEqual(t0, t1), both(lessThan(lower, cap), either(lessThan(lower, below), near))));
 }
-
-// (x0 y0 + x1 y1) + x2 y2, Eigen's order for a 3-vector dot product.
-CLOD_AVX2 __m256d dot3(__m256d x0, __m256d y0, __m256d x1, __m256d y1, __m256d x2, __m256d y2) {
-  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(x0, y0), _mm256_mul_pd(x1, y1)), _mm256_mul_pd(x2, y2));
-}
-
-// Lane-wise arithmetic, four doubles or eight floats at a time.
-CLOD_AVX2 __m256d plus(__m256d a, __m256d b) { return _mm256_add_pd(a, b); }
-CLOD_AVX2 __m256 plus(__m256 a, __m256 b) { return _mm256_add_ps(a, b); }
-CLOD_AVX2 __m256d minus(__m256d a, __m256d b) { return _mm256_sub_pd(a, b); }
-CLOD_AVX2 __m256 minus(__m256 a, __m256 b) { return _mm256_sub_ps(a, b); }
-CLOD_AVX2 __m256d times(__m256d a, __m256d b) { return _mm256_mul_pd(a, b); }
-CLOD_AVX2 __m256 times(__m256 a, __m256 b) { return _mm256_mul_ps(a, b); }
-CLOD_AVX2 __m256d smaller(__m256d a, __m256d b) { return _mm256_min_pd(a, b); }
-CLOD_AVX2 __m256 smaller(__m256 a, __m256 b) { return _mm256_min_ps(a, b); }
-CLOD_AVX2 __m256d larger(__m256d a, __m256d b) { return _mm256_max_pd(a, b); }
-CLOD_AVX2 __m256 larger(__m256 a, __m256 b) { return _mm256_max_ps(a, b); }
 
 // One axis of forEachRayHit's box test: the distances (lo - o) inv and (hi - o) inv to the box's planes,
 // the smaller one the near one (there is no NaN), narrow [t0, t1] to the slab between them.
