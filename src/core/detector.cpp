@@ -389,11 +389,11 @@ unsigned ClodDetector::batchSize(DetectionMode mode) const {
 
 // Four exact tests at once, branch-free (the scalar test's seven regions mispredict on most candidates), with the
 // same values bit for bit (closest_point_avx2.h); a lane that needs the zero-area fallback goes to the scalar test.
-// One by one (testGridTriangle) where batchSize(mode) is 1 (paper mode, or no AVX2).
+// A batch of one (the only kind where batchSize(mode) is 1: paper mode, or no AVX2) is tested by testGridTriangle.
 void ClodDetector::testGridBatch(const std::uint32_t* triangles, unsigned count, const Vec3& p, DetectionMode mode,
                                  Best& best) const {
 #if defined(CLOD_PACKET_AVX2)
-  if (batchSize(mode) > 1) {
+  if (count > 1) {  // only where batchSize(mode) is 4: the exact mode with AVX2
     const Vec3 *a[4], *b[4], *c[4];
     for (unsigned k = 0; k < 4; ++k) {
       const Triangle& t = triangleIndex_[triangles[std::min(k, count - 1)]];

@@ -309,7 +309,6 @@ class CellGrid {
   Vec3 origin_ = Vec3::Zero();
   std::int64_t dims_[3] = {0, 0, 0};
   std::size_t cellCount_ = 0;
-  std::uint32_t largest_ = 0;  // candidates of the most crowded cell
   // Per cell: a header (triangle = count, the next 4 bytes = spheres), then its candidates.
   detail::ReallocArray<Entry> entries_;
   std::vector<Word> words_;             // dense index
@@ -317,6 +316,8 @@ class CellGrid {
   std::vector<std::uint32_t> headers_;  // dense index: its header in the entries (read on contact only)
   std::vector<Slot> slots_;             // hashed index: open addressing
   std::uint64_t mask_ = 0;
+  std::uint32_t largest_ = 0;  // candidates of the most crowded cell (last: the members every query reads keep their
+                               // places)
 };
 
 }  // namespace clod_haptics
