@@ -6,6 +6,7 @@
 #include <cstring>
 #include <limits>
 #include <string>
+#include <type_traits>
 
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
@@ -56,6 +57,50 @@ struct ClodDetector::Best {
     regionKnown = feature != nullptr;
     if (regionKnown) region = *feature;
     return true;
+  }
+};
+
+/**
+ * A stream's neighbourhood being filled (QueryCache::nearTriangle) at a centre a, for a margin m: every triangle that
+ * can be the answer of a query within m of a, nearest first. Such an answer lies within r of the query, and (when a
+ * has a nearest triangle at d0) within d0 + m of it, so within min(r + m, d0 + 2 m) of a: reach (plus slack, the
+ * rounding), which shrinks while the scan finds nearer triangles, and to the farthest kept one once
+ * QueryCache::kNear are kept (the margin then shrinks to what that reach covers). Every triangle left out lies
+ * farther than reach.
+ */
+struct ClodDetector::NearFill {
+  NearFill(QueryCache& into, double radius, double m, double roundSlack)
+      : cache(into), r(radius), margin(m), slack(roundSlack), reach(radius + m + roundSlack) {}
+  QueryCache& cache;
+  double r, margin, slack;
+  double reach;  // for the scan's bounds
+  std::uint32_t count = 0;
+  double d2[QueryCache::kNear];
+
+  void follow(double bestDistance) {
+    reach = std::min(reach, std::min(r + margin, bestDistance + 2.0 * margin) + slack);
+  }
+  void keep(std::uint32_t tri, double dist2) {
+    if (!(dist2 <= reach * reach)) return;
+    if (count == QueryCache::kNear && !(dist2 < d2[count - 1])) return;
+    std::uint32_t i = count;
+    while (i > 0 && d2[i - 1] > dist2) --i;
+    // Met twice (the last contact, tested first, comes again in the scan): the same distance, just before.
+    for (std::uint32_t j = i; j > 0 && d2[j - 1] == dist2; --j)
+      if (cache.nearTriangle[j - 1] == tri) return;
+    if (count == QueryCache::kNear) --count;  // the farthest kept makes room
+    for (std::uint32_t j = count++; j > i; --j) {
+      d2[j] = d2[j - 1];
+      cache.nearTriangle[j] = cache.nearTriangle[j - 1];
+    }
+    d2[i] = dist2;
+    cache.nearTriangle[i] = tri;
+    if (count == QueryCache::kNear) reach = std::min(reach, std::sqrt(d2[count - 1]));
+  }
+  /** The margin the neighbourhood holds for, the nearest distance at its centre being d0 (infinite: none). */
+  double held(double d0) const {
+    const double covered = reach - 2.0 * slack;
+    return std::min(margin, std::max(covered - r, 0.5 * (covered - d0)));
   }
 };
 
@@ -364,14 +409,17 @@ void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best
 
 // The grid's precise test reads the triangle from the mesh's own arrays (indices, vertices: compact,
 // so they stay in cache) rather than from the per-triangle records the other fast levels use.
-inline void ClodDetector::testGridTriangle(std::uint32_t tri, const Vec3& p, DetectionMode mode, Best& best) const {
+inline void ClodDetector::testGridTriangle(std::uint32_t tri, const Vec3& p, DetectionMode mode, Best& best,
+                                           NearFill* fill) const {
   ++best.tested;
   const Triangle& t = triangleIndex_[tri];
   const Vec3* v = vertices_;
   Vec3 q;
   TriangleRegion feature, *region = &feature;
   if (!closestFor(mode, p, v[t[0]], v[t[1]], v[t[2]], normals_[tri], q, region)) return;
-  if (best.offer((p - q).squaredNorm(), tri, kNone, q, region)) {
+  const double d2 = (p - q).squaredNorm();
+  if (fill != nullptr) fill->keep(tri, d2);
+  if (best.offer(d2, tri, kNone, q, region)) {
     // The answer reads them last: start their loads while the scan goes on.
     __builtin_prefetch(normals_ + tri);
     __builtin_prefetch(sphereOfTriangle_.data() + tri);
@@ -391,7 +439,7 @@ unsigned ClodDetector::batchSize(DetectionMode mode) const {
 // same values bit for bit (closest_point_avx2.h); a lane that needs the zero-area fallback goes to the scalar test.
 // A batch of one (the only kind where batchSize(mode) is 1: paper mode, or no AVX2) is tested by testGridTriangle.
 void ClodDetector::testGridBatch(const std::uint32_t* triangles, unsigned count, const Vec3& p, DetectionMode mode,
-                                 Best& best) const {
+                                 Best& best, NearFill* fill) const {
 #if defined(CLOD_PACKET_AVX2)
   if (count > 1) {  // only where batchSize(mode) is 4: the exact mode with AVX2
     const Vec3 *a[4], *b[4], *c[4];
@@ -405,10 +453,11 @@ void ClodDetector::testGridBatch(const std::uint32_t* triangles, unsigned count,
     const unsigned computed = detail::closestPointsAvx2(p, a, b, c, q);
     for (unsigned k = 0; k < count; ++k) {
       if (!(computed & (1u << k))) {
-        testGridTriangle(triangles[k], p, mode, best);
+        testGridTriangle(triangles[k], p, mode, best, fill);
         continue;
       }
       ++best.tested;
+      if (fill != nullptr) fill->keep(triangles[k], q.d2[k]);
       if (!(q.d2[k] <= best.d2)) continue;  // farther than the best: offer would refuse it
       const TriangleRegion region = q.region(k);
       if (best.offer(q.d2[k], triangles[k], kNone, Vec3(q.q[0][k], q.q[1][k], q.q[2][k]), &region)) {
@@ -419,11 +468,81 @@ void ClodDetector::testGridBatch(const std::uint32_t* triangles, unsigned count,
     return;
   }
 #endif
-  for (unsigned k = 0; k < count; ++k) testGridTriangle(triangles[k], p, mode, best);
+  for (unsigned k = 0; k < count; ++k) testGridTriangle(triangles[k], p, mode, best, fill);
+}
+
+namespace {
+// A stream slower than this (per query, in radii) fills a neighbourhood; the margin it is filled for is this many
+// of its steps, between the two bounds (in radii): a neighbourhood then serves the next few dozen queries, and a
+// larger margin would list more triangles for each of them to pass over.
+constexpr double kNearStep = 1.0 / 16.0, kNearSteps = 16.0, kNearMarginMin = 1.0 / 32.0, kNearMarginMax = 0.25;
+
+// What the neighbourhood's bounds allow for the rounding of the distances it keeps and of |p - anchor|: far above
+// either (relative 1e-16 of the radius and of the local coordinates), far below any margin.
+inline double nearSlack(double r, const Vec3& p) { return 1e-9 * r + 1e-12 * p.cwiseAbs().maxCoeff(); }
+}  // namespace
+
+template <class Fill>
+inline __attribute__((always_inline)) void ClodDetector::scanCell(const CellGrid::Cell& cell, const Vec3& rel,
+                                                                  const Vec3& p, DetectionMode mode, Best& best,
+                                                                  Fill* fill) const {
+  const double offset = rel.norm() + pad_;
+  const double slack = grid_.slack();
+  const double unit = grid_.distanceUnit();
+  // The reach the bounds are held to: the best so far, or what the neighbourhood being filled needs (no fill: the
+  // scan of a plain query, whose bounds read best.reach as it narrows).
+  constexpr bool filling = std::is_same<Fill, NearFill>::value;
+  // The stored directions are scaled by 127; scaling rel instead saves a multiplication per entry.
+  const double rx = rel.x() * (1.0 / 127.0), ry = rel.y() * (1.0 / 127.0), rz = rel.z() * (1.0 / 127.0);
+  const CellGrid::Entry* e = cell.entries;
+  // Exact mode with AVX2: the candidates that pass the bounds are tested four at a time (testGridBatch); the bounds
+  // are judged against the best as it stood before the batch, so a batch may test a candidate the one-by-one scan
+  // would have skipped, never the reverse.
+  TriangleBatch batch(batchSize(mode), [&](const std::uint32_t* t, unsigned count) {
+    if constexpr (filling) {
+      testGridBatch(t, count, p, mode, best, fill);
+      fill->follow(best.reach);
+    } else {
+      testGridBatch(t, count, p, mode, best);
+    }
+  });
+  for (std::uint32_t i = 0; i < cell.count; ++i) {
+    double reach;
+    if constexpr (filling)
+      reach = fill->reach;
+    else
+      reach = best.reach;
+    const double dc = e[i].distance * unit;
+    // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
+    if (dc - offset > reach) break;
+    // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.
+    const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
+    if (bound - slack > reach) continue;
+    batch.add(e[i].triangle);  // the sphere is looked up once, for the answer
+  }
+  batch.finish();
 }
 
 void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const {
   const std::uint64_t key = grid_.keyOf(p);
+  const double r = best.reach;  // the search radius (search() sets it)
+  // The stream's step since its last query (infinite for another detector's cache), for the neighbourhood.
+  double step = std::numeric_limits<double>::infinity();
+  if (cache != nullptr) {
+    if (cache->owner == id_) step = (p - cache->lastPoint).norm();
+    cache->lastPoint = p;
+    // In the neighbourhood of the last fill: the triangles it lists are all this query needs.
+    if (cache->owner == id_ && cache->nearKey == key && cache->nearMargin >= 0.0 && cache->nearRadius == r &&
+        mode == DetectionMode::Exact && !best.deep) {
+      const double s = (p - cache->nearAnchor).norm();
+      if (s <= cache->nearMargin) {
+        ++cache->hits;
+        ++cache->nearHits;
+        preciseNear(p, s, mode, best, *cache);
+        return;
+      }
+    }
+  }
   const CellGrid::CellRef* ref;
   if (cache != nullptr && cache->owner == id_ && cache->key == key) {
     ref = static_cast<const CellGrid::CellRef*>(cache->cell);
@@ -433,6 +552,7 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   }
   if (cache != nullptr) {
     if (cache->owner != id_) cache->lastTriangle = -1;
+    if (cache->owner != id_) cache->nearMargin = -1.0;
     cache->owner = id_;
     cache->key = key;
     cache->cell = ref;
@@ -444,33 +564,54 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   if (grid_.noContact(*ref, rel, best.reach)) return;
   const CellGrid::Cell cell = grid_.cell(*ref);
   best.hits = cell.spheres;
+  const bool crowded = cell.count > kTreeAboveEntries && meshTree_;
+  // A slow stream (exact mode, not a crowded cell): this scan also fills the neighbourhood the next queries use.
+  if (cache != nullptr && mode == DetectionMode::Exact && !best.deep && !crowded && step <= kNearStep * r) {
+    const double margin = std::clamp(kNearSteps * step, kNearMarginMin * r, kNearMarginMax * r);
+    // Rounding of the distances and of |p - anchor| (relative to the radius and to the coordinates), kept on the
+    // safe side: a triangle the neighbourhood leaves out is farther than it needs by more than it.
+    const double slack = nearSlack(r, p);
+    NearFill fill(*cache, r, margin, slack);
+    // The last contact first: its distance narrows the reach from the start.
+    if (cache->lastTriangle >= 0 && static_cast<std::size_t>(cache->lastTriangle) < mesh_->size()) {
+      testGridTriangle(static_cast<std::uint32_t>(cache->lastTriangle), p, mode, best, &fill);
+      fill.follow(best.reach);
+    }
+    scanCell(cell, rel, p, mode, best, &fill);
+    // What it holds for the answer found: the margin, or less where the reach had to shrink for room.
+    fill.follow(best.reach);
+    const double held = fill.held(best.found ? best.reach : std::numeric_limits<double>::infinity());
+    std::uint32_t count = 0;
+    while (count < fill.count && fill.d2[count] <= fill.reach * fill.reach) ++count;
+    cache->nearMargin = held > 0.0 ? held : -1.0;
+    cache->nearAnchor = p;
+    cache->nearKey = key;
+    cache->nearRadius = r;
+    cache->nearSpheres = cell.spheres;
+    cache->nearCount = count;
+    for (std::uint32_t i = 0; i < count; ++i) cache->nearDistance[i] = std::sqrt(fill.d2[i]);
+    return;
+  }
   // Start from the last contact: a close triangle found first lets the sorted scan stop early.
   if (cache != nullptr && cache->lastTriangle >= 0 && static_cast<std::size_t>(cache->lastTriangle) < mesh_->size())
     testGridTriangle(static_cast<std::uint32_t>(cache->lastTriangle), p, mode, best);
   // A crowded cell (triangles far smaller than the radius): the tree reads fewer of them than the scan would.
-  if (cell.count > kTreeAboveEntries && meshTree_) {
+  if (crowded) {
     preciseMeshTree(p, mode, best);
     return;
   }
-  const double offset = rel.norm() + pad_;
-  const double slack = grid_.slack();
-  const double unit = grid_.distanceUnit();
-  // The stored directions are scaled by 127; scaling rel instead saves a multiplication per entry.
-  const double rx = rel.x() * (1.0 / 127.0), ry = rel.y() * (1.0 / 127.0), rz = rel.z() * (1.0 / 127.0);
-  const CellGrid::Entry* e = cell.entries;
-  // Exact mode with AVX2: the candidates that pass the bounds are tested four at a time (testGridBatch); the bounds
-  // are judged against the best as it stood before the batch, so a batch may test a candidate the one-by-one scan
-  // would have skipped, never the reverse.
+  scanCell(cell, rel, p, mode, best, static_cast<std::nullptr_t*>(nullptr));
+}
+
+void ClodDetector::preciseNear(const Vec3& p, double s, DetectionMode mode, Best& best, const QueryCache& cache) const {
+  best.hits = cache.nearSpheres;
+  const double slack = nearSlack(best.reach, p);
   TriangleBatch batch(batchSize(mode),
                       [&](const std::uint32_t* t, unsigned count) { testGridBatch(t, count, p, mode, best); });
-  for (std::uint32_t i = 0; i < cell.count; ++i) {
-    const double dc = e[i].distance * unit;
-    // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
-    if (dc - offset > best.reach) break;
-    // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.
-    const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
-    if (bound - slack > best.reach) continue;
-    batch.add(e[i].triangle);  // the sphere is looked up once, for the answer
+  for (std::uint32_t i = 0; i < cache.nearCount; ++i) {
+    // distance(p, T) >= distance(anchor, T) - |p - anchor|: nearest first, so the rest is farther still.
+    if (cache.nearDistance[i] - s - slack > best.reach) break;
+    batch.add(cache.nearTriangle[i]);
   }
   batch.finish();
 }

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -528,6 +529,195 @@ TEST(ClodDetector, CrowdedCellsAnswerAsBruteForce) {
   }
   EXPECT_GT(crowded, probes.size() / 2) << "the sheet must crowd the cells beyond kTreeAboveEntries";
   EXPECT_GT(contacts, probes.size() / 2);
+}
+
+// The soundness of a stream's neighbourhood (QueryCache::nearTriangle), checked over its cell's whole list with
+// closestPointOnTriangle: it lists, nearest first, once each and at the distances it says, every triangle of that
+// list within min(r + m, d0 + 2 m) of its anchor (m: the margin it claims, d0: the anchor's nearest distance within
+// r): what a query within m of the anchor, in that cell, may answer. Returns how many triangles that bound took in.
+std::size_t expectSoundNeighbourhood(const ClodDetector& det, const TriangleMesh& mesh, const QueryCache& cache,
+                                     double r) {
+  if (!(cache.nearMargin >= 0.0)) return 0;
+  const CellGrid& grid = det.grid();
+  const CellGrid::CellRef* ref = grid.find(cache.nearKey);
+  EXPECT_NE(ref, nullptr) << mesh.name << ": a neighbourhood of an empty cell";
+  if (ref == nullptr) return 0;
+  const Vec3& a = cache.nearAnchor;  // local frame, as the mesh's vertices
+  const auto distance = [&](std::uint32_t t) {
+    return (a - closestPointOnTriangle(a, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2))).norm();
+  };
+  for (std::uint32_t i = 0; i < cache.nearCount; ++i) {
+    EXPECT_NEAR(cache.nearDistance[i], distance(cache.nearTriangle[i]), 1e-12 * r) << mesh.name;
+    if (i > 0) {
+      EXPECT_LE(cache.nearDistance[i - 1], cache.nearDistance[i]) << mesh.name << ": not nearest first";
+    }
+    EXPECT_EQ(std::count(cache.nearTriangle, cache.nearTriangle + cache.nearCount, cache.nearTriangle[i]), 1)
+        << mesh.name << ": triangle " << cache.nearTriangle[i] << " listed twice (room wasted)";
+  }
+  const ContactResult nearest = bruteForceQuery(mesh, mesh.toModel(a), r);
+  const double d0 = nearest.contact ? nearest.distance : std::numeric_limits<double>::infinity();
+  const double m = cache.nearMargin, bound = std::min(r + m, d0 + 2.0 * m);
+  const CellGrid::Cell cell = grid.cell(*ref);
+  std::size_t needed = 0;
+  for (std::uint32_t k = 0; k < cell.count; ++k) {
+    const std::uint32_t t = cell.entries[k].triangle;
+    if (!(distance(t) <= bound)) continue;
+    ++needed;
+    const std::uint32_t* end = cache.nearTriangle + cache.nearCount;
+    EXPECT_NE(std::find(cache.nearTriangle, end, t), end)
+        << mesh.name << ": triangle " << t << " at " << distance(t) << " (within " << bound << " of the anchor, margin "
+        << m << ") is not listed";
+  }
+  return needed;
+}
+
+// A slow stream (steps of 0.001 r to 0.03 r) answers most queries from its QueryCache's neighbourhood: the triangles
+// of one cell within the radius plus a margin of the centre it was filled at. Every answer is brute force's (and the
+// stateless query's, bit for bit), on every shared mesh and on a sheet of triangles a third of r wide, where more
+// triangles lie within reach than the neighbourhood holds (its margin then shrinks). Paths from surface points along
+// a drifting tangent, in and out of the surface within 0.9 r (a stream that was inside and then finds nothing within
+// r is checked against the signed reference, as the push it follows).
+TEST(ClodDetector, ASlowStreamAnswersFromItsNeighbourhoodAsBruteForce) {
+  struct Case {
+    std::shared_ptr<const TriangleMesh> mesh;
+    double r;
+  };
+  std::vector<Case> cases;
+  for (const std::string& file : clod_test::sharedMeshes()) cases.push_back({clod_test::loadNormalized(file), 0.01});
+  cases.push_back({std::make_shared<const TriangleMesh>(clod_test::heightField(
+                       120, [](double x, double y) { return 0.1 * std::sin(2.0 * x) * std::cos(1.5 * y); },
+                       Eigen::Matrix3d::Identity(), Vec3::Zero())),
+                   0.05});
+  for (const Case& c : cases) {
+    const TriangleMesh& mesh = *c.mesh;
+    const double r = c.r;
+    const ClodDetector det(c.mesh, std::make_shared<const ClodSphereSet>(ClodBuilder(c.mesh).build(2.0 * r)),
+                           FastLevel::Grid, r);
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const std::vector<Vec3> starts = nearSurfaceProbes(mesh, 12, 0.0, 9);
+    QueryCache cache;
+    std::size_t queries = 0, contacts = 0, full = 0, fills = 0;
+    bool inside = false;
+    for (const Vec3& start : starts) {
+      const ContactResult at = bruteForceQuery(mesh, start, 1.0);
+      const Vec3 n = at.normal;
+      Vec3 t = n.unitOrthogonal();
+      double along = 0.0, phase = 2.0 * M_PI * u(rng);
+      for (int i = 0; i < 250; ++i) {
+        const double step = r * (0.001 + 0.03 * u(rng) * u(rng));
+        t = (t + 0.05 * n.cross(t)).normalized();  // the heading turns slowly about the normal
+        along += step;
+        phase += step / r;
+        const Vec3 p = at.point + 0.9 * r * std::sin(phase) * n + along * t;
+        const ContactResult ref = bruteForceQuery(mesh, p, r);
+        ContactResult got, stateless;
+        const Vec3 anchorBefore = cache.nearAnchor;
+        det.query(p, r, DetectionMode::Exact, got, &cache);
+        det.query(p, r, DetectionMode::Exact, stateless);
+        if (cache.nearAnchor != anchorBefore) {  // filled here
+          ++fills;
+          expectSoundNeighbourhood(det, mesh, cache, r);
+        }
+        ++queries;
+        contacts += ref.contact;
+        full += cache.nearCount == QueryCache::kNear;
+        if (!ref.contact && inside) {  // followed beyond r: the signed reference
+          const ContactResult deep = bruteForceSignedQuery(mesh, p, r);
+          ASSERT_EQ(got.contact, deep.contact) << mesh.name << " " << p.transpose();
+          if (deep.contact) {
+            ASSERT_EQ(got.distance, deep.distance) << mesh.name << " " << p.transpose();
+          }
+        } else {
+          ASSERT_EQ(got.contact, ref.contact) << mesh.name << " " << p.transpose();
+          if (ref.contact) {
+            ASSERT_EQ(got.triangle, ref.triangle) << mesh.name << " " << p.transpose();
+            ASSERT_EQ(got.distance, ref.distance) << mesh.name << " " << p.transpose();
+            ASSERT_EQ(got.point, ref.point) << mesh.name << " " << p.transpose();
+            ASSERT_EQ(got.inside, ref.inside) << mesh.name << " " << p.transpose();
+            ASSERT_EQ(got.sphere, stateless.sphere) << mesh.name << " " << p.transpose();
+          }
+        }
+        inside = got.contact && got.inside;
+      }
+    }
+    // The neighbourhood answered most of the stream, and the paths touched the surface.
+    EXPECT_GT(cache.nearHits, queries / 3) << mesh.name;
+    EXPECT_GT(fills, 10u) << mesh.name;
+    EXPECT_GT(contacts, queries / 4) << mesh.name;
+    if (r == 0.05) {
+      EXPECT_GT(full, 0u) << "the sheet must fill a neighbourhood to capacity";
+    }
+  }
+}
+
+// The neighbourhood must hold more than the triangles near its anchor: moving by m away from the anchor's nearest
+// triangle (at d0) towards another, the query's nearest can be one up to d0 + 2 m from the anchor. Two parallel
+// triangles 0.85 apart (r = 1), the anchor 0.3 above the lower one after a step of 0.01: the upper one (0.55 from
+// the anchor) is listed whenever the margin exceeds (0.55 - 0.3) / 2, and a query 0.99 of the margin higher is
+// answered from the neighbourhood as brute force answers it.
+TEST(ClodDetector, ANeighbourhoodHoldsTheTriangleBeyondTheNearestOne) {
+  const double r = 1.0, h = 0.85;
+  const auto mesh = std::make_shared<const TriangleMesh>(
+      makeMesh({Vec3(-5, -5, 0), Vec3(5, -5, 0), Vec3(0, 6, 0), Vec3(-5, -5, h), Vec3(0, 6, h), Vec3(5, -5, h)},
+               {{0, 1, 2}, {3, 4, 5}}, "two plates"));
+  const ClodDetector det(mesh, std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.5)), FastLevel::Grid, r);
+  const Vec3 a(0.1, 0.1, 0.3);
+  QueryCache cache;
+  ContactResult got;
+  det.query(a - Vec3(0.01, 0, 0), r, DetectionMode::Exact, got, &cache);
+  det.query(a, r, DetectionMode::Exact, got, &cache);
+  ASSERT_GT(cache.nearMargin, 0.125) << "a step of 0.01 r fills a neighbourhood wide enough to need the upper plate";
+  EXPECT_EQ(expectSoundNeighbourhood(det, *mesh, cache, r), 2u);
+  const Vec3 p = a + Vec3(0, 0, 0.99 * cache.nearMargin);
+  det.query(p, r, DetectionMode::Exact, got, &cache);
+  const ContactResult ref = bruteForceQuery(*mesh, p, r);
+  EXPECT_EQ(cache.nearHits, 1u) << "the last query must come from the neighbourhood filled at the anchor";
+  ASSERT_EQ(got.contact, ref.contact);
+  EXPECT_EQ(got.triangle, ref.triangle);
+  EXPECT_EQ(got.distance, ref.distance);
+}
+
+// When more triangles lie within reach than the neighbourhood holds, its reach shrinks to the farthest one kept and
+// its margin to what that reach covers: a lower plate of 0.02-area triangles, the anchor 0.3 above it, a roof 0.9 up.
+// The neighbourhood is full, sound (every triangle its margin needs is listed), and a query at 0.99 of that margin
+// towards the roof is answered from it as brute force answers it.
+TEST(ClodDetector, AFullNeighbourhoodHoldsOnlyWhatItsReachCovers) {
+  const double r = 1.0, h = 0.9;
+  const int n = 30;  // squares of 0.2 on [-3, 3]^2
+  std::vector<Vec3> v;
+  std::vector<Triangle> t;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) v.push_back(Vec3(-3.0 + 6.0 * i / n, -3.0 + 6.0 * j / n, 0.0));
+  const auto at = [n](int i, int j) { return static_cast<std::uint32_t>(j * (n + 1) + i); };
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      t.push_back({at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+      t.push_back({at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+    }
+  const std::uint32_t top = static_cast<std::uint32_t>(v.size());
+  v.insert(v.end(), {Vec3(-5, -5, h), Vec3(0, 6, h), Vec3(5, -5, h)});
+  t.push_back({top, top + 1, top + 2});
+  const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(std::move(v), std::move(t), "plate and roof"));
+  const ClodDetector det(mesh, std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.5)), FastLevel::Grid, r);
+  const Vec3 a(0.05, 0.07, 0.3);
+  QueryCache cache;
+  ContactResult got;
+  det.query(a - Vec3(0.01, 0, 0), r, DetectionMode::Exact, got, &cache);
+  det.query(a, r, DetectionMode::Exact, got, &cache);
+  ASSERT_EQ(cache.nearCount, QueryCache::kNear) << "the fill at the anchor must run out of room";
+  ASSERT_GT(cache.nearMargin, 0.0);
+  expectSoundNeighbourhood(det, *mesh, cache, r);
+  for (const Vec3& dir : {Vec3(0, 0, 1), Vec3(0, 0, -1), Vec3(1, 0, 0), Vec3(0.6, 0.8, 0)}) {
+    const Vec3 p = a + 0.99 * cache.nearMargin * dir;
+    const std::uint64_t hits = cache.nearHits;
+    det.query(p, r, DetectionMode::Exact, got, &cache);
+    const ContactResult ref = bruteForceQuery(*mesh, p, r);
+    EXPECT_EQ(cache.nearHits, hits + 1) << "within the margin: answered from the neighbourhood";
+    ASSERT_EQ(got.contact, ref.contact) << p.transpose();
+    EXPECT_EQ(got.triangle, ref.triangle) << p.transpose();
+    EXPECT_EQ(got.distance, ref.distance) << p.transpose();
+  }
 }
 
 TEST(ClodDetector, InvalidQueriesAnswerNoContact) {

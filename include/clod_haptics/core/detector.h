@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -23,8 +24,9 @@ enum class FastLevel : std::uint8_t {
 
 /**
  * \brief Per-stream state for temporal coherence: a haptic pointer moves little between two
- * queries, so the last cell and the last contact triangle are tried first. Owned by the caller (one
- * per stylus stream, not shared between threads). Every contact within the pointer radius is answered
+ * queries, so the last cell and the last contact triangle are tried first, and a slow stream answers from the
+ * triangles it kept near its pointer (the neighbourhood below). Owned by the caller (one per stylus stream, not
+ * shared between threads; about 700 bytes). Every contact within the pointer radius is answered
  * the same with or without it; the cache adds one thing, deep penetration: after an answer with the
  * centre inside, the stream keeps its contact when the centre goes deeper than the radius (see query()).
  */
@@ -39,6 +41,23 @@ struct QueryCache {
   /// The last answer was a contact with the centre inside: the next query follows it beyond the radius.
   /// Kept across detectors (a level swap of the same part keeps the push); an invalid query leaves it.
   bool lastInside = false;
+
+  /// The neighbourhood of a slow stream (exact mode on the grid): while the pointer moves less than a sixteenth of
+  /// its radius a query, the query that scans a cell also keeps every triangle of that cell's list within the radius
+  /// plus a margin of its centre (nearTriangle, nearest first, with that distance). The next queries in the same
+  /// cell within the margin of that centre test only those, nearest first, and stop at the first one too far: a
+  /// triangle within the radius of such a centre is within the radius plus the margin of the first. Same answers.
+  static constexpr std::uint32_t kNear = 48;
+  Vec3 lastPoint = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  ///< last centre (local frame)
+  Vec3 nearAnchor = Vec3::Zero();  ///< the centre the neighbourhood was filled at (local frame)
+  std::uint64_t nearKey = ~0ull;   ///< that centre's grid cell, whose list the neighbourhood is drawn from
+  double nearRadius = 0.0;         ///< the radius it serves
+  double nearMargin = -1.0;        ///< how far from the anchor it holds (< 0: no neighbourhood)
+  std::uint32_t nearSpheres = 0;   ///< the cell's sphere count (the answer's spheresHit)
+  std::uint32_t nearCount = 0;
+  std::uint32_t nearTriangle[kNear] = {};
+  double nearDistance[kNear] = {};
+  std::uint64_t nearHits = 0;  ///< queries answered from the neighbourhood (statistics)
 };
 
 /** \brief Parses "flat", "hierarchy" or "grid"; returns false for anything else. */
@@ -152,17 +171,27 @@ class ClodDetector {
 
  private:
   struct Best;
+  struct NearFill;
   template <class Visit>
   void forEachHitSphere(double px, double py, double pz, const double& reach, bool tight, Visit&& visit) const;
   void preciseFlat(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
   void preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
   void testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode, Best& best) const;
-  void testGridTriangle(std::uint32_t tri, const Vec3& p, DetectionMode mode, Best& best) const;
+  // fill: also hands every computed squared distance to a neighbourhood being filled (see QueryCache).
+  void testGridTriangle(std::uint32_t tri, const Vec3& p, DetectionMode mode, Best& best,
+                        NearFill* fill = nullptr) const;
   // testGridTriangle on count (1..batchSize(mode)) triangles: four at a time in AVX2 for the exact mode.
-  void testGridBatch(const std::uint32_t* triangles, unsigned count, const Vec3& p, DetectionMode mode,
-                     Best& best) const;
+  void testGridBatch(const std::uint32_t* triangles, unsigned count, const Vec3& p, DetectionMode mode, Best& best,
+                     NearFill* fill = nullptr) const;
   unsigned batchSize(DetectionMode mode) const;  // 4 for the exact mode where the CPU runs AVX2, else 1
   void preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const;
+  // The grid's scan of one cell for p (rel: p from the cell's centre). Fill is NearFill (every triangle within its
+  // reach is handed to it as well) or std::nullptr_t (a plain query).
+  template <class Fill>
+  void scanCell(const CellGrid::Cell& cell, const Vec3& rel, const Vec3& p, DetectionMode mode, Best& best,
+                Fill* fill) const;
+  // The answer for p from the stream's neighbourhood (QueryCache::nearTriangle), s = |p - anchor|.
+  void preciseNear(const Vec3& p, double s, DetectionMode mode, Best& best, const QueryCache& cache) const;
   void preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const;
   // The stages of query(): the spheres mode; the nearest triangle within radius; the growing search of a deep
   // centre; the answer from the search's result.
