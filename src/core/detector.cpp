@@ -526,19 +526,19 @@ inline __attribute__((always_inline)) void ClodDetector::scanCell(const CellGrid
 void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const {
   const std::uint64_t key = grid_.keyOf(p);
   const double r = best.reach;  // the search radius (search() sets it)
-  // The stream's step since its last query (infinite for another detector's cache), for the neighbourhood.
-  double step = std::numeric_limits<double>::infinity();
+  // The stream's squared step since its last query (infinite for another detector's cache), for the neighbourhood.
+  double step2 = std::numeric_limits<double>::infinity();
   if (cache != nullptr) {
-    if (cache->owner == id_) step = (p - cache->lastPoint).norm();
+    if (cache->owner == id_) step2 = (p - cache->lastPoint).squaredNorm();
     cache->lastPoint = p;
     // In the neighbourhood of the last fill: the triangles it lists are all this query needs.
     if (cache->owner == id_ && cache->nearKey == key && cache->nearMargin >= 0.0 && cache->nearRadius == r &&
         mode == DetectionMode::Exact && !best.deep) {
-      const double s = (p - cache->nearAnchor).norm();
-      if (s <= cache->nearMargin) {
+      const double s2 = (p - cache->nearAnchor).squaredNorm();
+      if (s2 <= cache->nearMargin * cache->nearMargin) {
         ++cache->hits;
         ++cache->nearHits;
-        preciseNear(p, s, mode, best, *cache);
+        preciseNear(p, std::sqrt(s2), mode, best, *cache);
         return;
       }
     }
@@ -566,8 +566,9 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   best.hits = cell.spheres;
   const bool crowded = cell.count > kTreeAboveEntries && meshTree_;
   // A slow stream (exact mode, not a crowded cell): this scan also fills the neighbourhood the next queries use.
-  if (cache != nullptr && mode == DetectionMode::Exact && !best.deep && !crowded && step <= kNearStep * r) {
-    const double margin = std::clamp(kNearSteps * step, kNearMarginMin * r, kNearMarginMax * r);
+  if (cache != nullptr && mode == DetectionMode::Exact && !best.deep && !crowded &&
+      step2 <= kNearStep * kNearStep * r * r) {
+    const double margin = std::clamp(kNearSteps * std::sqrt(step2), kNearMarginMin * r, kNearMarginMax * r);
     // Rounding of the distances and of |p - anchor| (relative to the radius and to the coordinates), kept on the
     // safe side: a triangle the neighbourhood leaves out is farther than it needs by more than it.
     const double slack = nearSlack(r, p);
