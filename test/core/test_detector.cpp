@@ -651,6 +651,13 @@ TEST(ClodDetector, ASlowStreamAnswersFromItsNeighbourhoodAsBruteForce) {
   }
 }
 
+// A stream over det that steps 0.01 onto a: its query at a fills a neighbourhood there (a slow stream).
+void fillNeighbourhoodAt(const ClodDetector& det, const Vec3& a, double r, QueryCache& cache) {
+  ContactResult c;
+  det.query(a - Vec3(0.01, 0, 0), r, DetectionMode::Exact, c, &cache);
+  det.query(a, r, DetectionMode::Exact, c, &cache);
+}
+
 // The neighbourhood must hold more than the triangles near its anchor: moving by m away from the anchor's nearest
 // triangle (at d0) towards another, the query's nearest can be one up to d0 + 2 m from the anchor. Two parallel
 // triangles 0.85 apart (r = 1), the anchor 0.3 above the lower one after a step of 0.01: the upper one (0.55 from
@@ -664,12 +671,11 @@ TEST(ClodDetector, ANeighbourhoodHoldsTheTriangleBeyondTheNearestOne) {
   const ClodDetector det(mesh, std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.5)), FastLevel::Grid, r);
   const Vec3 a(0.1, 0.1, 0.3);
   QueryCache cache;
-  ContactResult got;
-  det.query(a - Vec3(0.01, 0, 0), r, DetectionMode::Exact, got, &cache);
-  det.query(a, r, DetectionMode::Exact, got, &cache);
+  fillNeighbourhoodAt(det, a, r, cache);
   ASSERT_GT(cache.nearMargin, 0.125) << "a step of 0.01 r fills a neighbourhood wide enough to need the upper plate";
   EXPECT_EQ(expectSoundNeighbourhood(det, *mesh, cache, r), 2u);
   const Vec3 p = a + Vec3(0, 0, 0.99 * cache.nearMargin);
+  ContactResult got;
   det.query(p, r, DetectionMode::Exact, got, &cache);
   const ContactResult ref = bruteForceQuery(*mesh, p, r);
   EXPECT_EQ(cache.nearHits, 1u) << "the last query must come from the neighbourhood filled at the anchor";
@@ -702,15 +708,14 @@ TEST(ClodDetector, AFullNeighbourhoodHoldsOnlyWhatItsReachCovers) {
   const ClodDetector det(mesh, std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.5)), FastLevel::Grid, r);
   const Vec3 a(0.05, 0.07, 0.3);
   QueryCache cache;
-  ContactResult got;
-  det.query(a - Vec3(0.01, 0, 0), r, DetectionMode::Exact, got, &cache);
-  det.query(a, r, DetectionMode::Exact, got, &cache);
+  fillNeighbourhoodAt(det, a, r, cache);
   ASSERT_EQ(cache.nearCount, QueryCache::kNear) << "the fill at the anchor must run out of room";
   ASSERT_GT(cache.nearMargin, 0.0);
   expectSoundNeighbourhood(det, *mesh, cache, r);
   for (const Vec3& dir : {Vec3(0, 0, 1), Vec3(0, 0, -1), Vec3(1, 0, 0), Vec3(0.6, 0.8, 0)}) {
     const Vec3 p = a + 0.99 * cache.nearMargin * dir;
     const std::uint64_t hits = cache.nearHits;
+    ContactResult got;
     det.query(p, r, DetectionMode::Exact, got, &cache);
     const ContactResult ref = bruteForceQuery(*mesh, p, r);
     EXPECT_EQ(cache.nearHits, hits + 1) << "within the margin: answered from the neighbourhood";
