@@ -153,6 +153,110 @@ TEST(HapticRenderer, ProxyStaysOnTheEntrySideOfAThinPlate) {
   }
 }
 
+// Plates the tests above were not written for: 60 mm square, 0.1 to 4 mm thick (or a sheet of no thickness, open),
+// tessellated in 1 to 30 squares a side (regular or jittered, so some triangles are long and thin), turned and moved
+// at random; the device goes back and forth through them 40 times at 0.01 to 4 m/s, with random friction, damping and
+// force shading. The proxy never ends a tick inside (brute force) and never changes side of the plate's middle while
+// over its inside (a pop-through; round the rim it may).
+TEST(HapticRenderer, ProxyNeverCrossesRandomThinPlatesOrSheets) {
+  std::mt19937_64 rng(2026);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::size_t ticks = 0, touching = 0;
+  for (int plate = 0; plate < 8; ++plate) {
+    const double half = 0.03, thick = 1e-4 * std::pow(40.0, u(rng));
+    const bool sheet = plate % 4 == 3, jitter = u(rng) < 0.5;
+    const int n = 1 + static_cast<int>(u(rng) * 30.0);
+    std::vector<Vec3> v;
+    std::vector<Triangle> t;
+    auto face = [&](double z, bool up) {
+      const std::uint32_t base = static_cast<std::uint32_t>(v.size());
+      for (int i = 0; i <= n; ++i)
+        for (int j = 0; j <= n; ++j) {
+          Vec3 x(-half + 2.0 * half * i / n, -half + 2.0 * half * j / n, z);
+          if (jitter && i > 0 && i < n && j > 0 && j < n) x += Vec3(u(rng) - 0.5, u(rng) - 0.5, 0.0) * (half / n);
+          v.push_back(x);
+        }
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+          const std::uint32_t a = base + static_cast<std::uint32_t>(i * (n + 1) + j), b = a + n + 1, c = a + 1,
+                              d = b + 1;
+          if (up) {
+            t.push_back({a, b, d});
+            t.push_back({a, d, c});
+          } else {
+            t.push_back({a, d, b});
+            t.push_back({a, c, d});
+          }
+        }
+      return base;
+    };
+    const std::uint32_t top = face(sheet ? 0.0 : thick / 2, true);
+    if (!sheet) {
+      const std::uint32_t bottom = face(-thick / 2, false);
+      // The rim: the boundary loop of the top face joined to the bottom's.
+      std::vector<std::pair<int, int>> loop;
+      for (int i = 0; i < n; ++i) loop.push_back({i, 0});
+      for (int j = 0; j < n; ++j) loop.push_back({n, j});
+      for (int i = n; i > 0; --i) loop.push_back({i, n});
+      for (int j = n; j > 0; --j) loop.push_back({0, j});
+      auto at = [n](std::uint32_t base, std::pair<int, int> ij) {
+        return base + static_cast<std::uint32_t>(ij.first * (n + 1) + ij.second);
+      };
+      for (std::size_t k = 0; k < loop.size(); ++k) {
+        const auto p = loop[k], q = loop[(k + 1) % loop.size()];
+        t.push_back({at(top, p), at(bottom, p), at(bottom, q)});
+        t.push_back({at(top, p), at(bottom, q), at(top, q)});
+      }
+    }
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = Eigen::Quaterniond(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized().matrix();
+    pose.translation() = Vec3(u(rng), u(rng), u(rng)) * 0.05;
+    for (Vec3& x : v) x = pose * x;
+    const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(std::move(v), std::move(t), "random plate"));
+    const SweptScene scene = sceneOf(mesh, kRadius);  // the grid for the pointer, as the shipped node builds it
+    ProxyParameters params;
+    params.radius = kRadius;
+    params.stiffness = kStiffness;
+    if (u(rng) < 0.5) {
+      params.muStatic = u(rng);
+      params.muDynamic = params.muStatic * u(rng);
+    }
+    params.damping = u(rng) < 0.3 ? 1.0 : 0.0;
+    params.forceShading = u(rng) < 0.3;
+    HapticRenderer renderer(params);
+    const Eigen::Isometry3d local = pose.inverse();
+    Vec3 device = pose * Vec3(0.0, 0.0, 0.01);
+    renderer.reset(device);
+    Vec3 last = local * device;
+    std::size_t inside = 0, crossings = 0;
+    ProxyTick tick;
+    for (int leg = 0; leg < 40; ++leg) {
+      const Vec3 target = pose * Vec3((u(rng) - 0.5) * 0.07, (u(rng) - 0.5) * 0.07, (u(rng) - 0.5) * 0.03);
+      const double speed = 0.01 * std::pow(400.0, u(rng));  // 0.01 to 4 m/s
+      const int steps = std::max(1, static_cast<int>((target - device).norm() / (speed * kDt)));
+      const Vec3 from = device;
+      for (int s = 1; s <= steps; ++s) {
+        device = from + (target - from) * (static_cast<double>(s) / steps);
+        renderer.update(scene, device, kDt, tick);
+        ++ticks;
+        touching += tick.contact;
+        const Vec3 p = local * tick.proxy;
+        const bool over = std::abs(p.x()) < half - kRadius && std::abs(p.y()) < half - kRadius &&
+                          std::abs(last.x()) < half - kRadius && std::abs(last.y()) < half - kRadius;
+        if (over && (p.z() > 0.0) != (last.z() > 0.0) && ++crossings <= 2)
+          ADD_FAILURE() << "plate " << plate << " (" << thick << " thick, " << n << " squares): the proxy went from "
+                        << last.z() << " to " << p.z() << " at " << speed << " m/s";
+        if (bruteForceQuery(*mesh, tick.proxy, kRadius * (1.0 - 1e-6)).contact && ++inside <= 2)
+          ADD_FAILURE() << "plate " << plate << ": the proxy ends a tick inside at " << tick.proxy.transpose();
+        last = p;
+      }
+    }
+    EXPECT_EQ(crossings, 0u) << "plate " << plate;
+    EXPECT_EQ(inside, 0u) << "plate " << plate;
+  }
+  EXPECT_GT(touching, ticks / 4) << "the paths must press on the plates";
+}
+
 TEST(HapticRenderer, PenaltyModelPopsThroughTheThinPlate) {  // the criterion above can fail
   const auto mesh = box(Vec3(-0.05, -0.05, -kPlate / 2), Vec3(0.05, 0.05, kPlate / 2));
   for (double speed : {0.05, 0.5, 2.0}) {
