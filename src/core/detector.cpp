@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <string>
 #include <type_traits>
 
@@ -551,8 +552,10 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
     ref = grid_.find(key);
   }
   if (cache != nullptr) {
-    if (cache->owner != id_) cache->lastTriangle = -1;
-    if (cache->owner != id_) cache->nearMargin = -1.0;
+    if (cache->owner != id_) {  // another detector's: its triangles and cells mean nothing here
+      cache->lastTriangle = -1;
+      cache->nearMargin = -1.0;
+    }
     cache->owner = id_;
     cache->key = key;
     cache->cell = ref;
@@ -566,36 +569,36 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   best.hits = cell.spheres;
   const bool crowded = cell.count > kTreeAboveEntries && meshTree_;
   // A slow stream (exact mode, not a crowded cell): this scan also fills the neighbourhood the next queries use.
+  std::optional<NearFill> fill;
   if (cache != nullptr && mode == DetectionMode::Exact && !best.deep && !crowded &&
       step2 <= kNearStep * kNearStep * r * r) {
     const double margin = std::clamp(kNearSteps * std::sqrt(step2), kNearMarginMin * r, kNearMarginMax * r);
     // Rounding of the distances and of |p - anchor| (relative to the radius and to the coordinates), kept on the
     // safe side: a triangle the neighbourhood leaves out is farther than it needs by more than it.
-    const double slack = nearSlack(r, p);
-    NearFill fill(*cache, r, margin, slack);
-    // The last contact first: its distance narrows the reach from the start.
-    if (cache->lastTriangle >= 0 && static_cast<std::size_t>(cache->lastTriangle) < mesh_->size()) {
-      testGridTriangle(static_cast<std::uint32_t>(cache->lastTriangle), p, mode, best, &fill);
-      fill.follow(best.reach);
-    }
-    scanCell(cell, rel, p, mode, best, &fill);
+    fill.emplace(*cache, r, margin, nearSlack(r, p));
+  }
+  // Start from the last contact: a close triangle found first lets the sorted scan stop early (and narrows the reach
+  // of a fill from the start).
+  if (cache != nullptr && cache->lastTriangle >= 0 && static_cast<std::size_t>(cache->lastTriangle) < mesh_->size()) {
+    testGridTriangle(static_cast<std::uint32_t>(cache->lastTriangle), p, mode, best, fill ? &*fill : nullptr);
+    if (fill) fill->follow(best.reach);
+  }
+  if (fill) {
+    scanCell(cell, rel, p, mode, best, &*fill);
     // What it holds for the answer found: the margin, or less where the reach had to shrink for room.
-    fill.follow(best.reach);
-    const double held = fill.held(best.found ? best.reach : std::numeric_limits<double>::infinity());
+    fill->follow(best.reach);
+    const double held = fill->held(best.found ? best.reach : std::numeric_limits<double>::infinity());
     std::uint32_t count = 0;
-    while (count < fill.count && fill.d2[count] <= fill.reach * fill.reach) ++count;
+    while (count < fill->count && fill->d2[count] <= fill->reach * fill->reach) ++count;
     cache->nearMargin = held > 0.0 ? held : -1.0;
     cache->nearAnchor = p;
     cache->nearKey = key;
     cache->nearRadius = r;
     cache->nearSpheres = cell.spheres;
     cache->nearCount = count;
-    for (std::uint32_t i = 0; i < count; ++i) cache->nearDistance[i] = std::sqrt(fill.d2[i]);
+    for (std::uint32_t i = 0; i < count; ++i) cache->nearDistance[i] = std::sqrt(fill->d2[i]);
     return;
   }
-  // Start from the last contact: a close triangle found first lets the sorted scan stop early.
-  if (cache != nullptr && cache->lastTriangle >= 0 && static_cast<std::size_t>(cache->lastTriangle) < mesh_->size())
-    testGridTriangle(static_cast<std::uint32_t>(cache->lastTriangle), p, mode, best);
   // A crowded cell (triangles far smaller than the radius): the tree reads fewer of them than the scan would.
   if (crowded) {
     preciseMeshTree(p, mode, best);
