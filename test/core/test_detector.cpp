@@ -690,17 +690,12 @@ TEST(ClodDetector, ANeighbourhoodHoldsTheTriangleBeyondTheNearestOne) {
 // towards the roof is answered from it as brute force answers it.
 TEST(ClodDetector, AFullNeighbourhoodHoldsOnlyWhatItsReachCovers) {
   const double r = 1.0, h = 0.9;
-  const int n = 30;  // squares of 0.2 on [-3, 3]^2
+  // The plate: 30 x 30 squares of 0.2 on [-3, 3]^2 (the height field's square scaled by 3).
+  const TriangleMesh plate =
+      clod_test::heightField(30, [](double, double) { return 0.0; }, 3.0 * Eigen::Matrix3d::Identity(), Vec3::Zero());
   std::vector<Vec3> v;
-  std::vector<Triangle> t;
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i <= n; ++i) v.push_back(Vec3(-3.0 + 6.0 * i / n, -3.0 + 6.0 * j / n, 0.0));
-  const auto at = [n](int i, int j) { return static_cast<std::uint32_t>(j * (n + 1) + i); };
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      t.push_back({at(i, j), at(i + 1, j), at(i + 1, j + 1)});
-      t.push_back({at(i, j), at(i + 1, j + 1), at(i, j + 1)});
-    }
+  for (const Vec3& x : plate.vertices) v.push_back(plate.toModel(x));
+  std::vector<Triangle> t = plate.triangles;
   const std::uint32_t top = static_cast<std::uint32_t>(v.size());
   v.insert(v.end(), {Vec3(-5, -5, h), Vec3(0, 6, h), Vec3(5, -5, h)});
   t.push_back({top, top + 1, top + 2});

@@ -168,26 +168,23 @@ TEST(HapticRenderer, ProxyNeverCrossesRandomThinPlatesOrSheets) {
     const int n = 1 + static_cast<int>(u(rng) * 30.0);
     std::vector<Vec3> v;
     std::vector<Triangle> t;
+    // A face: the height field's grid on [-half, half]^2 at height z (wound upwards, or reversed), its inner
+    // vertices moved at random when jittered.
     auto face = [&](double z, bool up) {
       const std::uint32_t base = static_cast<std::uint32_t>(v.size());
-      for (int i = 0; i <= n; ++i)
-        for (int j = 0; j <= n; ++j) {
-          Vec3 x(-half + 2.0 * half * i / n, -half + 2.0 * half * j / n, z);
-          if (jitter && i > 0 && i < n && j > 0 && j < n) x += Vec3(u(rng) - 0.5, u(rng) - 0.5, 0.0) * (half / n);
-          v.push_back(x);
-        }
-      for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-          const std::uint32_t a = base + static_cast<std::uint32_t>(i * (n + 1) + j), b = a + n + 1, c = a + 1,
-                              d = b + 1;
-          if (up) {
-            t.push_back({a, b, d});
-            t.push_back({a, d, c});
-          } else {
-            t.push_back({a, d, b});
-            t.push_back({a, c, d});
-          }
-        }
+      const TriangleMesh grid = clod_test::heightField(
+          n, [](double, double) { return 0.0; }, Eigen::DiagonalMatrix<double, 3>(half, half, 1.0).toDenseMatrix(),
+          Vec3(0.0, 0.0, z));
+      for (std::size_t k = 0; k < grid.vertices.size(); ++k) {
+        const int i = static_cast<int>(k) % (n + 1), j = static_cast<int>(k) / (n + 1);
+        Vec3 x = grid.toModel(grid.vertices[k]);
+        if (jitter && i > 0 && i < n && j > 0 && j < n) x += Vec3(u(rng) - 0.5, u(rng) - 0.5, 0.0) * (half / n);
+        v.push_back(x);
+      }
+      for (const Triangle& g : grid.triangles) {
+        const Triangle k{base + g[0], base + g[1], base + g[2]};
+        t.push_back(up ? k : Triangle{k[0], k[2], k[1]});
+      }
       return base;
     };
     const std::uint32_t top = face(sheet ? 0.0 : thick / 2, true);
@@ -199,8 +196,8 @@ TEST(HapticRenderer, ProxyNeverCrossesRandomThinPlatesOrSheets) {
       for (int j = 0; j < n; ++j) loop.push_back({n, j});
       for (int i = n; i > 0; --i) loop.push_back({i, n});
       for (int j = n; j > 0; --j) loop.push_back({0, j});
-      auto at = [n](std::uint32_t base, std::pair<int, int> ij) {
-        return base + static_cast<std::uint32_t>(ij.first * (n + 1) + ij.second);
+      auto at = [n](std::uint32_t base, std::pair<int, int> ij) {  // the height field's vertex (i, j)
+        return base + static_cast<std::uint32_t>(ij.second * (n + 1) + ij.first);
       };
       for (std::size_t k = 0; k < loop.size(); ++k) {
         const auto p = loop[k], q = loop[(k + 1) % loop.size()];
