@@ -69,14 +69,19 @@ MeshFigures measure(const TriangleMesh& mesh) {
 }
 
 /**
- * Estimated candidates of cells of side h keeping the triangles within reach of their centres. Each triangle
- * lands in the cells within reach: a slab around its area, or for triangles smaller than a cell, the ball of that
- * reach around it (about half its bounding cube, which spans about (edge + 2 reach) / h cells along each axis).
+ * Expected candidates of cells of side h keeping the triangles within reach of their centres: a cell lists a
+ * triangle when its centre lies in the triangle grown by reach, whose volume is 2 reach A + (pi / 2) reach^2 P +
+ * (4 pi / 3) reach^3 for a flat triangle of area A and perimeter P (Steiner's formula), so on average over the
+ * grid's placement that volume over h^3, summed over the triangles. It holds for every shape: small triangles
+ * (the ball term), large ones (the area term) and long thin ones (the perimeter term: a sliver spans a tube of
+ * cells along its length, not the cube of its bounding box).
  */
 double estimatedCandidates(const MeshFigures& f, std::size_t triangles, double reach, double h) {
-  const double slab = (2.0 * reach * f.area) / (h * h * h);
-  const double span = (f.edge + 2.0 * reach) / h;
-  return std::max(slab, 0.6 * span * span * span * static_cast<double>(triangles));
+  constexpr double kPi = 3.141592653589793;
+  const double n = static_cast<double>(triangles), perimeter = 3.0 * f.edge * n;
+  const double volume =
+      2.0 * reach * f.area + 0.5 * kPi * reach * reach * perimeter + (4.0 / 3.0) * kPi * reach * reach * reach * n;
+  return volume / (h * h * h);
 }
 
 /**

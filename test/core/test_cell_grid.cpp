@@ -207,6 +207,54 @@ TEST(CellGrid, LargestCellIsTheMostCrowdedCell) {
   }
 }
 
+// The cell side is grown beyond its 3 r only for the memory budget, and only as far as the budget needs: a grown
+// grid holds at least 0.4 of its budget of candidates (one growth step of 1.25 fewer would exceed it), a grid never
+// much more than the budget. Long thin triangles are the shape a bounding-box estimate gets wrong: it took a sliver
+// for the cube of its length and grew the cells of a strip cylinder to 13 r with 5% of the budget used, every cell
+// then listing tens of strips more than the pointer can touch.
+TEST(CellGrid, CellsGrowOnlyAsFarAsTheBudgetNeeds) {
+  // A cylinder of 1,000 full-height strips (2,000 slivers 0.3 r wide and 200 r long at r = 0.005), open at both
+  // ends: at r = 0.005 its cells stay at 3 r, at r = 0.002 they must grow.
+  std::vector<Vec3> vertices;
+  std::vector<Triangle> triangles;
+  const std::uint32_t strips = 1000;
+  for (std::uint32_t i = 0; i < strips; ++i) {
+    const double a = 2.0 * M_PI * i / strips;
+    vertices.push_back(Vec3(0.5 + 0.25 * std::cos(a), 0.5 + 0.25 * std::sin(a), 0.0));
+    vertices.push_back(Vec3(0.5 + 0.25 * std::cos(a), 0.5 + 0.25 * std::sin(a), 1.0));
+  }
+  for (std::uint32_t i = 0; i < strips; ++i) {
+    const std::uint32_t j = (i + 1) % strips;
+    triangles.push_back({2 * i, 2 * j, 2 * j + 1});
+    triangles.push_back({2 * i, 2 * j + 1, 2 * i + 1});
+  }
+  std::vector<std::pair<std::string, std::shared_ptr<const TriangleMesh>>> meshes{
+      {"strip cylinder", std::make_shared<const TriangleMesh>(makeMesh(vertices, triangles, "strips"))},
+      {"head.off", clod_test::loadNormalized(clod_test::sharedMesh("head.off"))},
+      {"cube.obj", clod_test::loadNormalized(clod_test::testData("cube.obj"))}};
+  for (const auto& [name, mesh] : meshes) {
+    SCOPED_TRACE(name);
+    const ClodSphereSet set = ClodBuilder(mesh).build(0.0);
+    for (const double r : {0.005, 0.002}) {
+      const double budget = std::max(1e6, 24.0 * static_cast<double>(mesh->size()));
+      const CellGrid grid(*mesh, set, r);
+      const double entries = static_cast<double>(grid.entries());
+      const bool grown = grid.cellSize() > 3.0 * r * (1.0 + 1e-9);
+      if (name == "strip cylinder") {
+        EXPECT_EQ(grown, r < 0.004) << "cell " << grid.cellSize() / r << " r";
+      }
+      EXPECT_LE(entries, 1.5 * budget) << "r " << r << ", cell " << grid.cellSize() / r << " r";
+      if (grown) {
+        EXPECT_GE(entries, 0.4 * budget) << "r " << r << ", cell " << grid.cellSize() / r << " r";
+      }
+    }
+  }
+  // And the strip cylinder's grid keeps the contract.
+  const auto& strips_ = meshes[0].second;
+  checkGrid(*strips_, CellGrid(*strips_, ClodBuilder(strips_).build(0.0), 0.005), probesNear(*strips_, 0.01, 17),
+            "strips");
+}
+
 TEST(CellGrid, BadRadiusThrows) {
   const auto mesh = clod_test::loadNormalized(clod_test::testData("cube.obj"));
   const ClodSphereSet set = ClodBuilder(mesh).build(0.0);

@@ -153,9 +153,11 @@ class CellGrid {
 
   CellGrid() = default;
   /**
-   * \brief Builds the grid for pointers of radius up to radius (> 0). Cell side is 2 radius, grown
-   * when the grid would exceed 2^21 cells per axis or its memory budget: entriesPerTriangle
-   * candidates per triangle on average (8 bytes each), so memory stays linear in the mesh.
+   * \brief Builds the grid for pointers of radius up to radius (> 0). Cell side is 2 to 3 radius, grown
+   * when the grid would exceed 2^21 cells per axis or its memory budget: max(10^6, entriesPerTriangle x
+   * triangles) candidates (8 bytes each), so memory stays linear in the mesh beyond 41,667 triangles. The
+   * candidates are estimated before the build from the triangles' total area, perimeter and count (the
+   * volume of each triangle grown by a cell's reach), which holds for small, large and long thin triangles.
    * \param index Auto: dense when its bit index takes at most max(4 MiB, 16 bytes per triangle),
    * hashed otherwise; Dense or Hashed force one (Dense falls back to Hashed beyond 2^34 cells).
    * \param sliceCandidates the build collects candidates in slices of z of about this many (the peak
