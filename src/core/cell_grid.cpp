@@ -50,7 +50,7 @@ struct MeshFigures {
   double magnitude;  // largest coordinate magnitude of the bounds
   double pad;        // rounding slack relative to the coordinates
   double area;       // total area
-  double edge;       // mean edge length
+  double perimeter;  // total perimeter (the sum of every triangle's three edges)
 };
 
 MeshFigures measure(const TriangleMesh& mesh) {
@@ -61,10 +61,9 @@ MeshFigures measure(const TriangleMesh& mesh) {
   f.area = 0.0;
   for (std::size_t t = 0; t < mesh.size(); ++t)
     f.area += 0.5 * (mesh.vertex(t, 1) - mesh.vertex(t, 0)).cross(mesh.vertex(t, 2) - mesh.vertex(t, 0)).norm();
-  double edges = 0.0;
+  f.perimeter = 0.0;
   for (std::size_t t = 0; t < mesh.size(); ++t)
-    for (int k = 0; k < 3; ++k) edges += (mesh.vertex(t, (k + 1) % 3) - mesh.vertex(t, k)).norm();
-  f.edge = edges / (3.0 * static_cast<double>(mesh.size()));
+    for (int k = 0; k < 3; ++k) f.perimeter += (mesh.vertex(t, (k + 1) % 3) - mesh.vertex(t, k)).norm();
   return f;
 }
 
@@ -78,9 +77,9 @@ MeshFigures measure(const TriangleMesh& mesh) {
  */
 double estimatedCandidates(const MeshFigures& f, std::size_t triangles, double reach, double h) {
   constexpr double kPi = 3.141592653589793;
-  const double n = static_cast<double>(triangles), perimeter = 3.0 * f.edge * n;
+  const double n = static_cast<double>(triangles);
   const double volume =
-      2.0 * reach * f.area + 0.5 * kPi * reach * reach * perimeter + (4.0 / 3.0) * kPi * reach * reach * reach * n;
+      2.0 * reach * f.area + 0.5 * kPi * reach * reach * f.perimeter + (4.0 / 3.0) * kPi * reach * reach * reach * n;
   return volume / (h * h * h);
 }
 
