@@ -186,10 +186,11 @@ class ClodDetector {
   unsigned batchSize(DetectionMode mode) const;  // 4 for the exact mode where the CPU runs AVX2, else 1
   void preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const;
   // The grid's scan of one cell for p (rel: p from the cell's centre). Fill is NearFill (every triangle within its
-  // reach is handed to it as well) or std::nullptr_t (a plain query).
+  // reach is handed to it as well) or std::nullptr_t (a plain query). skip: a triangle already tested for p, passed
+  // over (UINT32_MAX: none).
   template <class Fill>
   void scanCell(const CellGrid::Cell& cell, const Vec3& rel, const Vec3& p, DetectionMode mode, Best& best,
-                Fill* fill) const;
+                Fill* fill, std::uint32_t skip) const;
   // The answer for p from the stream's neighbourhood (QueryCache::nearTriangle), s = |p - anchor|.
   void preciseNear(const Vec3& p, double s, DetectionMode mode, Best& best, const QueryCache& cache) const;
   void preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const;
