@@ -399,11 +399,14 @@ void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMod
               [&](std::uint32_t t) { testTriangle(t, sphere, p, mode, best); });
 }
 
-void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const {
+void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best, std::uint32_t skip) const {
   TriangleBatch batch(batchSize(mode),
                       [&](const std::uint32_t* t, unsigned count) { testGridBatch(t, count, p, mode, best); });
   walkBoxTree(
-      meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2, [&](std::uint32_t t) { batch.add(t); },
+      meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2,
+      [&](std::uint32_t t) {
+        if (t != skip) batch.add(t);
+      },
       meshSlabs_.empty() ? nullptr : meshSlabs_.data());
   batch.finish();
 }
@@ -605,7 +608,7 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   }
   // A crowded cell (triangles far smaller than the radius): the tree reads fewer of them than the scan would.
   if (crowded) {
-    preciseMeshTree(p, mode, best);
+    preciseMeshTree(p, mode, best, tested);
     return;
   }
   scanCell(cell, rel, p, mode, best, static_cast<std::nullptr_t*>(nullptr), tested);
@@ -743,7 +746,7 @@ inline void ClodDetector::search(const Vec3& p, double radius, DetectionMode mod
   }
   // The grid level beyond its radius: every triangle within it, through one tree.
   if (meshTree_ && !meshTree_->nodes.empty()) {
-    preciseMeshTree(p, mode, best);
+    preciseMeshTree(p, mode, best, kNone);
     return;
   }
   const bool tree = fastLevel_ != FastLevel::Flat && !triangleRoot_.empty();
@@ -775,10 +778,13 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
     best.d2 = diagonal * diagonal;
     best.reach = diagonal;
     best.found = false;
+    std::uint32_t tested = kNone;  // passed over by the walk (see preciseGrid)
     if (cache != nullptr && cache->owner == id_ && cache->lastTriangle >= 0 &&
-        static_cast<std::size_t>(cache->lastTriangle) < mesh_->size())
-      testGridTriangle(static_cast<std::uint32_t>(cache->lastTriangle), p, mode, best);
-    preciseMeshTree(p, mode, best);
+        static_cast<std::size_t>(cache->lastTriangle) < mesh_->size()) {
+      tested = static_cast<std::uint32_t>(cache->lastTriangle);
+      testGridTriangle(tested, p, mode, best);
+    }
+    preciseMeshTree(p, mode, best, tested);
     return;
   }
   if (meshTree_ && !meshTree_->nodes.empty()) {

@@ -193,7 +193,9 @@ class ClodDetector {
                 Fill* fill, std::uint32_t skip) const;
   // The answer for p from the stream's neighbourhood (QueryCache::nearTriangle), s = |p - anchor|.
   void preciseNear(const Vec3& p, double s, DetectionMode mode, Best& best, const QueryCache& cache) const;
-  void preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best) const;
+  // The nearest triangle within best's reach through the tree over the mesh; skip: a triangle already tested for p,
+  // passed over (UINT32_MAX: none).
+  void preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best, std::uint32_t skip) const;
   // The stages of query(): the spheres mode; the nearest triangle within radius; the growing search of a deep
   // centre; the answer from the search's result.
   void querySpheres(const Vec3& p, double r, ContactResult& out, QueryCache* cache) const;
