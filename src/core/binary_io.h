@@ -79,6 +79,7 @@ class ByteReader {
   /** \brief The next bytes into out. */
   void read(void* out, std::size_t bytes, const char* field = nullptr) {
     if (bytes > size_ - pos_) failTruncated(field);
+    if (bytes == 0) return;  // an empty array's data() may be null, and memcpy's pointers must be valid even for 0
     std::memcpy(out, data_ + pos_, bytes);
     pos_ += bytes;
   }
