@@ -59,11 +59,14 @@ MeshFigures measure(const TriangleMesh& mesh) {
   f.magnitude = std::max(f.bounds.min().cwiseAbs().maxCoeff(), f.bounds.max().cwiseAbs().maxCoeff());
   f.pad = 1e-12 * std::max(f.magnitude, f.bounds.diagonal().norm());
   f.area = 0.0;
-  for (std::size_t t = 0; t < mesh.size(); ++t)
-    f.area += 0.5 * (mesh.vertex(t, 1) - mesh.vertex(t, 0)).cross(mesh.vertex(t, 2) - mesh.vertex(t, 0)).norm();
   f.perimeter = 0.0;
-  for (std::size_t t = 0; t < mesh.size(); ++t)
-    for (int k = 0; k < 3; ++k) f.perimeter += (mesh.vertex(t, (k + 1) % 3) - mesh.vertex(t, k)).norm();
+  for (std::size_t t = 0; t < mesh.size(); ++t) {  // one pass over the corners for both
+    const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
+    f.area += 0.5 * (b - a).cross(c - a).norm();
+    f.perimeter += (b - a).norm();
+    f.perimeter += (c - b).norm();
+    f.perimeter += (a - c).norm();
+  }
   return f;
 }
 

@@ -527,6 +527,13 @@ inline __attribute__((always_inline)) void ClodDetector::scanCell(const CellGrid
   batch.finish();
 }
 
+std::uint32_t ClodDetector::lastContact(const QueryCache* cache) const {
+  if (cache == nullptr || cache->owner != id_ || cache->lastTriangle < 0 ||
+      static_cast<std::size_t>(cache->lastTriangle) >= mesh_->size())
+    return kNone;
+  return static_cast<std::uint32_t>(cache->lastTriangle);
+}
+
 void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const {
   const std::uint64_t key = grid_.keyOf(p);
   const double r = best.reach;  // the search radius (search() sets it)
@@ -584,9 +591,8 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   // of a fill from the start).
   // The plain scan then passes that triangle over: a second test would answer the same (in the bench's 0.1 m/s
   // streams it made the cached query 2 to 8% slower than the stateless one). A fill keeps it once either way.
-  std::uint32_t tested = kNone;
-  if (cache != nullptr && cache->lastTriangle >= 0 && static_cast<std::size_t>(cache->lastTriangle) < mesh_->size()) {
-    tested = static_cast<std::uint32_t>(cache->lastTriangle);
+  const std::uint32_t tested = lastContact(cache);
+  if (tested != kNone) {
     testGridTriangle(tested, p, mode, best, fill ? &*fill : nullptr);
     if (fill) fill->follow(best.reach);
   }
@@ -778,12 +784,8 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
     best.d2 = diagonal * diagonal;
     best.reach = diagonal;
     best.found = false;
-    std::uint32_t tested = kNone;  // passed over by the walk (see preciseGrid)
-    if (cache != nullptr && cache->owner == id_ && cache->lastTriangle >= 0 &&
-        static_cast<std::size_t>(cache->lastTriangle) < mesh_->size()) {
-      tested = static_cast<std::uint32_t>(cache->lastTriangle);
-      testGridTriangle(tested, p, mode, best);
-    }
+    const std::uint32_t tested = lastContact(cache);  // passed over by the walk (see preciseGrid)
+    if (tested != kNone) testGridTriangle(tested, p, mode, best);
     preciseMeshTree(p, mode, best, tested);
     return;
   }

@@ -184,6 +184,8 @@ class ClodDetector {
   void testGridBatch(const std::uint32_t* triangles, unsigned count, const Vec3& p, DetectionMode mode, Best& best,
                      NearFill* fill = nullptr) const;
   unsigned batchSize(DetectionMode mode) const;  // 4 for the exact mode where the CPU runs AVX2, else 1
+  // The stream's last contact triangle when the cache is this detector's and holds one, else UINT32_MAX.
+  std::uint32_t lastContact(const QueryCache* cache) const;
   void preciseGrid(const Vec3& p, DetectionMode mode, Best& best, QueryCache* cache) const;
   // The grid's scan of one cell for p (rel: p from the cell's centre). Fill is NearFill (every triangle within its
   // reach is handed to it as well) or std::nullptr_t (a plain query). skip: a triangle already tested for p, passed
