@@ -40,7 +40,13 @@ double cellsOfBox(const std::int64_t dims[3]) {
   return static_cast<double>(dims[0]) * static_cast<double>(dims[1]) * static_cast<double>(dims[2]);
 }
 
-std::int8_t quantise(double u) { return static_cast<std::int8_t>(std::lround(std::clamp(u, -1.0, 1.0) * 127.0)); }
+/** Round to nearest, halves away from zero (std::lround's rule, without its library call: millions per grid). */
+std::int8_t quantise(double u) {
+  const double v = std::clamp(u, -1.0, 1.0) * 127.0;          // NaN stays NaN: clamp returns it, the casts give 0
+  const int whole = std::isnan(v) ? 0 : static_cast<int>(v);  // toward zero; v - whole is exact
+  const double rest = std::isnan(v) ? 0.0 : v - whole;
+  return static_cast<std::int8_t>(whole + (rest >= 0.5) - (rest <= -0.5));
+}
 
 // ---- Cell size and placement ----
 
@@ -152,27 +158,41 @@ void spannedCells(const TriangleMesh& mesh, const Layout& g, std::size_t t, std:
 
 // ---- Candidates ----
 
+/** The 8-bit distance of an entry, rounded down (q * unit <= d, exactly as the query computes it). */
+std::uint8_t distanceCode(float distance, double unit) {
+  const double d = static_cast<double>(distance);
+  double q = std::min(255.0, std::floor(d / unit));
+  while (q > 0.0 && q * unit > d) q -= 1.0;
+  return static_cast<std::uint8_t>(q);
+}
+
+/** A triangle listed by a cell, before packing (20 bytes: the key in two halves, so nothing is padded). */
 struct Candidate {
-  std::uint64_t key;
-  float distance;
+  std::uint32_t keyLow, keyHigh;
   std::uint32_t triangle;
+  std::uint8_t distance;  // distanceCode: what the entry keeps, and all the query's early exit reads
+  std::uint8_t finer;     // the distance within its code, in 256ths of the unit: the order within a code
   std::int8_t direction[3];
+
+  std::uint64_t key() const { return std::uint64_t{keyHigh} << 32 | keyLow; }
 };
 
-/** The order of the entries: by cell, then by distance, then by triangle. */
+/** The order of the entries: by cell, then by distance code, then by triangle. */
 struct ByCellThenDistance {
   bool operator()(const Candidate& p, const Candidate& q) const {
-    if (p.key != q.key) return p.key < q.key;
+    if (p.key() != q.key()) return p.key() < q.key();
     if (p.distance != q.distance) return p.distance < q.distance;
+    if (p.finer != q.finer) return p.finer < q.finer;
     return p.triangle < q.triangle;
   }
 };
 
 /**
- * Sorts candidates in ByCellThenDistance order: by cell with a radix sort (the keys cut down to the bits their
- * x, y and z ranges use, which keeps their order; 11 bits a pass, through scratch), then each cell's run by distance
- * and triangle: by insertion (tens of candidates), or as integer keys beyond 32. A slice's candidates are millions:
- * this is linear in them, where a comparison sort took a fifth of the grid's build.
+ * Sorts candidates collected in ascending triangle order into ByCellThenDistance order with one stable radix sort
+ * (through scratch): a pass over the 8-bit distance code, then the keys cut down to the bits their x, y and z ranges
+ * use (which keeps their order), 11 bits a pass. Stable, so equal cells and codes keep the triangles' order. A slice's
+ * candidates are millions: this is linear in them, where sorting each cell's run took a sixth of the grid's build
+ * on meshes whose triangles are far smaller than a cell (hundreds of candidates a cell).
  */
 void sortCandidates(ReallocArray<Candidate>& c, ReallocArray<Candidate>& scratch) {
   const std::size_t n = c.size();
@@ -181,7 +201,7 @@ void sortCandidates(ReallocArray<Candidate>& c, ReallocArray<Candidate>& scratch
   std::uint64_t lo[3] = {kAxis, kAxis, kAxis}, hi[3] = {0, 0, 0};
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) {
-      const std::uint64_t v = (c[i].key >> (k * CellGrid::kBits)) & kAxis;
+      const std::uint64_t v = (c[i].key() >> (k * CellGrid::kBits)) & kAxis;
       lo[k] = std::min(lo[k], v);
       hi[k] = std::max(hi[k], v);
     }
@@ -201,40 +221,19 @@ void sortCandidates(ReallocArray<Candidate>& c, ReallocArray<Candidate>& scratch
   Candidate* from = c.data();
   Candidate* to = scratch.data();
   std::vector<std::size_t> count(kBuckets);
-  for (int pass = 0; pass * kDigit < total; ++pass) {
+  auto pass = [&](auto&& digit) {
     std::fill(count.begin(), count.end(), 0);
-    const int at = pass * kDigit;
-    for (std::size_t i = 0; i < n; ++i) ++count[(compact(from[i].key) >> at) & (kBuckets - 1)];
+    for (std::size_t i = 0; i < n; ++i) ++count[digit(from[i])];
     std::size_t sum = 0;
     for (std::size_t& b : count) sum += std::exchange(b, sum);
-    for (std::size_t i = 0; i < n; ++i) to[count[(compact(from[i].key) >> at) & (kBuckets - 1)]++] = from[i];
+    for (std::size_t i = 0; i < n; ++i) to[count[digit(from[i])]++] = from[i];
     std::swap(from, to);
-  }
+  };
+  pass([](const Candidate& x) { return std::size_t{x.finer}; });
+  pass([](const Candidate& x) { return std::size_t{x.distance}; });
+  for (int at = 0; at < total; at += kDigit)
+    pass([&](const Candidate& x) { return static_cast<std::size_t>((compact(x.key()) >> at) & (kBuckets - 1)); });
   if (from != c.data()) std::copy(from, from + n, c.data());
-  const ByCellThenDistance less;
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> order;  // a crowded run's (distance, triangle) and position
-  for (std::size_t begin = 0, end = 0; begin < n; begin = end) {
-    end = begin + 1;
-    while (end < n && c[end].key == c[begin].key) ++end;
-    if (end - begin > 32) {  // a crowded cell (triangles far smaller than it): sort integer keys, then move once
-      order.clear();
-      for (std::size_t i = begin; i < end; ++i) {
-        std::uint32_t bits;  // a distance is >= 0: its bits order as the floats do
-        std::memcpy(&bits, &c[i].distance, sizeof bits);
-        order.emplace_back(std::uint64_t{bits} << 32 | c[i].triangle, static_cast<std::uint32_t>(i - begin));
-      }
-      std::sort(order.begin(), order.end());
-      for (std::size_t i = 0; i < order.size(); ++i) scratch[i] = c[begin + order[i].second];
-      std::copy(scratch.data(), scratch.data() + order.size(), c.data() + begin);
-      continue;
-    }
-    for (std::size_t i = begin + 1; i < end; ++i) {
-      const Candidate v = c[i];
-      std::size_t j = i;
-      for (; j > begin && less(v, c[j - 1]); --j) c[j] = c[j - 1];
-      c[j] = v;
-    }
-  }
 }
 
 std::uint64_t cellKey(std::int64_t x, std::int64_t y, std::int64_t z) {
@@ -245,11 +244,13 @@ std::uint64_t cellKey(std::int64_t x, std::int64_t y, std::int64_t z) {
 /** Lists, for triangles, the cells whose centre is within reach of them (an exact test: no candidate is missed). */
 class CandidateCollector {
  public:
-  CandidateCollector(const TriangleMesh& mesh, const Layout& g, const MeshFigures& f)
+  CandidateCollector(const TriangleMesh& mesh, const Layout& g, const MeshFigures& f, double distanceUnit)
       : mesh_(mesh),
         g_(g),
+        unit_(distanceUnit),
         planeLimit_(g.reach + 1e-9 * g.h + f.pad),  // slack for the rounding of the plane distance
-        tiny_(std::max(1e-9 * g.h, 4e-9 * f.magnitude)) {}
+        tiny_(std::max(1e-9 * g.h, 4e-9 * f.magnitude)),
+        rangeSlack_(1e-6 * g.h + 4.0 * f.pad) {}
 
   /** Appends the candidates of the triangles [begin, end) in the cells of z in [zBegin, zEnd). */
   void collect(const std::uint32_t* begin, const std::uint32_t* end, std::int64_t zBegin, std::int64_t zEnd,
@@ -277,9 +278,28 @@ class CandidateCollector {
     l[2] = std::max(l[2], zBegin);
     u[2] = std::min(u[2], zEnd - 1);
     if (l[2] > u[2]) return;
-    for (std::int64_t x = l[0]; x <= u[0]; ++x)
-      for (std::int64_t y = l[1]; y <= u[1]; ++y)
-        for (std::int64_t z = l[2]; z <= u[2]; ++z) {
+    // Each column's cells narrowed to the z range where a centre can pass the two tests below: the ball, and the
+    // plane when it is not steep in z. Both ranges are widened by rangeSlack_, far beyond their rounding (the
+    // tests themselves then decide, as for every cell of the box before).
+    const double ballWide = ball + rangeSlack_, ballWide2 = ballWide * ballWide;
+    const bool planeRange = planar && std::abs(n.z()) >= 0.05;
+    const double planeWide = planeLimit_ + rangeSlack_;
+    for (std::int64_t x = l[0]; x <= u[0]; ++x) {
+      const double dx = g_.origin.x() + (static_cast<double>(x) + 0.5) * g_.h - mid.x();
+      for (std::int64_t y = l[1]; y <= u[1]; ++y) {
+        const double dy = g_.origin.y() + (static_cast<double>(y) + 0.5) * g_.h - mid.y();
+        const double rem = ballWide2 - dx * dx - dy * dy;
+        if (rem < 0.0) continue;
+        const double half = std::sqrt(rem);
+        double zLo = mid.z() - half, zHi = mid.z() + half;
+        if (planeRange) {  // |n . (centre - a)| <= limit, solved for the centre's z
+          const double w = n.x() * (dx + mid.x() - a.x()) + n.y() * (dy + mid.y() - a.y());
+          const double p = (-planeWide - w) / n.z(), q = (planeWide - w) / n.z();
+          zLo = std::max(zLo, a.z() + std::min(p, q) - rangeSlack_);
+          zHi = std::min(zHi, a.z() + std::max(p, q) + rangeSlack_);
+        }
+        const std::int64_t zFirst = std::max(l[2], cellAtOrAbove(zLo)), zLast = std::min(u[2], cellAtOrBelow(zHi));
+        for (std::int64_t z = zFirst; z <= zLast; ++z) {
           const Vec3 centre = g_.centre(x, y, z);
           // The distance to the plane is a lower bound of the distance to the triangle: most cells of
           // the box are rejected by it before the closest-point computation.
@@ -289,6 +309,16 @@ class CandidateCollector {
           const double d = toCentre.norm();
           if (d <= g_.reach) out.push_back(candidate(cellKey(x, y, z), static_cast<std::uint32_t>(t), toCentre, d));
         }
+      }
+    }
+  }
+
+  /** The first and last cell of z whose centre's z is at or above (at or below) v (clamped far outside). */
+  std::int64_t cellAtOrAbove(double v) const {
+    return static_cast<std::int64_t>(std::ceil(std::clamp((v - g_.origin.z()) * g_.inv - 0.5, -2.0, 1e15)));
+  }
+  std::int64_t cellAtOrBelow(double v) const {
+    return static_cast<std::int64_t>(std::floor(std::clamp((v - g_.origin.z()) * g_.inv - 0.5, -2.0, 1e15)));
   }
 
   /**
@@ -298,15 +328,22 @@ class CandidateCollector {
    * 0 <= distance (dc = 0, u = 0): never skipped, never wrong.
    */
   Candidate candidate(std::uint64_t key, std::uint32_t t, const Vec3& toCentre, double d) const {
-    if (!(d > tiny_)) return {key, 0.0f, t, {0, 0, 0}};
+    const auto low = static_cast<std::uint32_t>(key), high = static_cast<std::uint32_t>(key >> 32);
+    if (!(d > tiny_)) return {low, high, t, 0, 0, {0, 0, 0}};
     const Vec3 dir = toCentre / d;
-    return {key, roundDown(d), t, {quantise(dir.x()), quantise(dir.y()), quantise(dir.z())}};
+    const float rounded = roundDown(d);
+    const std::uint8_t code = distanceCode(rounded, unit_);
+    const double within = (static_cast<double>(rounded) - code * unit_) * (256.0 / unit_);  // monotone in d
+    const auto finer = static_cast<std::uint8_t>(std::clamp(within, 0.0, 255.0));
+    return {low, high, t, code, finer, {quantise(dir.x()), quantise(dir.y()), quantise(dir.z())}};
   }
 
   const TriangleMesh& mesh_;
   const Layout& g_;
+  double unit_;  // of the distance codes
   double planeLimit_;
   double tiny_;
+  double rangeSlack_;  // widening of the z ranges of a column: 10^-6 of a cell, and the coordinates' rounding
 };
 
 // ---- Slices of z ----
@@ -423,22 +460,14 @@ struct SliceCandidates {
     std::size_t cells = 0;
     std::uint64_t last = CellGrid::kOutside;
     forEachMerged([&](const Candidate& c) {
-      cells += c.key != last;
-      last = c.key;
+      cells += c.key() != last;
+      last = c.key();
     });
     return cells;
   }
 };
 
 // ---- Packing the entries ----
-
-/** The 8-bit distance of an entry, rounded down (q * unit <= d, exactly as the query computes it). */
-std::uint8_t distanceCode(float distance, double unit) {
-  const double d = static_cast<double>(distance);
-  double q = std::min(255.0, std::floor(d / unit));
-  while (q > 0.0 && q * unit > d) q -= 1.0;
-  return static_cast<std::uint8_t>(q);
-}
 
 /** The key and the header position (in the entries) of every cell, in key order. */
 struct CellTables {
@@ -452,8 +481,8 @@ struct CellTables {
  */
 class CellPacker {
  public:
-  CellPacker(ReallocArray<Entry>& entries, std::vector<std::uint32_t> sphereOf, double distanceUnit)
-      : entries_(entries), sphereOf_(std::move(sphereOf)), unit_(distanceUnit) {}
+  CellPacker(ReallocArray<Entry>& entries, std::vector<std::uint32_t> sphereOf, std::size_t spheres)
+      : entries_(entries), sphereOf_(std::move(sphereOf)), cellOfSphere_(spheres + 1, kNoCell) {}
 
   /** Appends the cells of a slice (its cells follow those appended before in key order). */
   void append(const SliceCandidates& slice) {
@@ -468,31 +497,34 @@ class CellPacker {
 
  private:
   void add(const Candidate& c) {
-    if (c.key != last_) {
+    if (c.key() != last_) {
       closeCell();
-      seen_.clear();
+      spheres_ = 0;
+      ++cell_;
       header_ = at_++;
       tables.headers.push_back(header_);
-      tables.keys.push_back(c.key);
-      last_ = c.key;
+      tables.keys.push_back(c.key());
+      last_ = c.key();
     }
-    entries_[at_++] =
-        Entry{c.triangle, distanceCode(c.distance, unit_), {c.direction[0], c.direction[1], c.direction[2]}};
-    seen_.push_back(sphereOf_[c.triangle]);
+    entries_[at_++] = Entry{c.triangle, c.distance, {c.direction[0], c.direction[1], c.direction[2]}};
+    // A triangle no sphere lists (kept by a caller's set that breaks the coverage invariant) counts as one more.
+    std::uint32_t& seen = cellOfSphere_[std::min<std::size_t>(sphereOf_[c.triangle], cellOfSphere_.size() - 1)];
+    spheres_ += seen != cell_;
+    seen = cell_;
   }
   void closeCell() {
     if (last_ == CellGrid::kOutside) return;
-    std::sort(seen_.begin(), seen_.end());
-    const auto spheres = static_cast<std::uint32_t>(std::unique(seen_.begin(), seen_.end()) - seen_.begin());
     Entry& e = entries_[header_];
     e = Entry{static_cast<std::uint32_t>(at_ - header_ - 1), 0, {0, 0, 0}};
-    std::memcpy(reinterpret_cast<unsigned char*>(&e) + 4, &spheres, sizeof spheres);
+    std::memcpy(reinterpret_cast<unsigned char*>(&e) + 4, &spheres_, sizeof spheres_);
   }
 
   ReallocArray<Entry>& entries_;
+  static constexpr std::uint32_t kNoCell = 0xffffffffu;
   const std::vector<std::uint32_t> sphereOf_;  // the first sphere listing each triangle
-  const double unit_;
-  std::vector<std::uint32_t> seen_;  // spheres of the open cell's candidates
+  std::vector<std::uint32_t> cellOfSphere_;    // per sphere (and one for none), the last cell listing it
+  std::uint32_t cell_ = kNoCell;               // the open cell's number (wraps to 0 at the first)
+  std::uint32_t spheres_ = 0;                  // distinct spheres of the open cell's candidates
   std::size_t at_ = 0, header_ = 0;
   std::uint64_t last_ = CellGrid::kOutside;
 };
@@ -510,10 +542,10 @@ CellTables packCells(const TriangleMesh& mesh, const ClodSphereSet& set, const M
       std::clamp<std::int64_t>(static_cast<std::int64_t>(expected / std::max(1.0, sliceCandidates)) + 1, 1,
                                std::min<std::int64_t>(256, g.dims[2]));
   // Every triangle is listed by a sphere: the coverage invariant.
-  CellPacker packer(entries, firstSphereOfTriangles(set, mesh.size()), distanceUnit);
+  CellPacker packer(entries, firstSphereOfTriangles(set, mesh.size()), set.size());
   const std::vector<std::int64_t> starts = sliceStarts(mesh, g, slices);
   const SliceTriangles lists = trianglesPerSlice(mesh, g, starts);
-  const CandidateCollector collector(mesh, g, f);
+  const CandidateCollector collector(mesh, g, f, distanceUnit);
   SliceCandidates candidates;
   for (std::size_t slice = 0; slice + 1 < starts.size(); ++slice) {
     if (starts[slice] >= starts[slice + 1]) continue;
@@ -526,58 +558,49 @@ CellTables packCells(const TriangleMesh& mesh, const ClodSphereSet& set, const M
 
 // ---- Proofs of no contact ----
 
+/** A convex polygon of up to 3 + 14 corners: a triangle clipped by the 14 planes of a cell's region. */
+struct Polygon {
+  Vec3 corner[24];
+  int count = 0;
+};
+
 /**
- * Range of n . x over the part of triangle (a, b, c) (relative to a cell's centre) inside the region
- * |x|_inf <= half, |x|_1 <= diamond (Sutherland-Hodgman against those 6 + 8 planes); false when nothing
- * of the triangle is inside.
+ * The part of triangle (a, b, c) (relative to a cell's centre) inside the region |x|_inf <= half, |x|_1 <= diamond
+ * (Sutherland-Hodgman against those 6 + 8 planes), in out; false when nothing of the triangle is inside.
  */
-bool clippedRange(const Vec3& a, const Vec3& b, const Vec3& c, double half, double diamond, const Vec3& n, double& lo,
-                  double& hi) {
+bool clipToRegion(const Vec3& a, const Vec3& b, const Vec3& c, double half, double diamond, Polygon& out) {
   // Most candidates of a fine mesh lie wholly inside the region (no clipping) or wholly outside one
   // of its planes (nothing inside).
   auto inside = [&](const Vec3& v) { return v.cwiseAbs().maxCoeff() <= half && v.lpNorm<1>() <= diamond; };
-  if (inside(a) && inside(b) && inside(c)) {
-    const double x = n.dot(a), y = n.dot(b), z = n.dot(c);
-    lo = std::min({x, y, z});
-    hi = std::max({x, y, z});
-    return true;
-  }
+  out.corner[0] = a;
+  out.corner[1] = b;
+  out.corner[2] = c;
+  out.count = 3;
+  if (inside(a) && inside(b) && inside(c)) return true;
   for (int k = 0; k < 3; ++k)
     if ((a[k] > half && b[k] > half && c[k] > half) || (a[k] < -half && b[k] < -half && c[k] < -half)) return false;
-  Vec3 poly[2][24];
-  int count = 3;
-  poly[0][0] = a;
-  poly[0][1] = b;
-  poly[0][2] = c;
-  int cur = 0;
+  Polygon other;
+  Polygon* in = &out;
+  Polygon* to = &other;
   auto clip = [&](const Vec3& normal, double limit) {
-    const Vec3* in = poly[cur];
-    Vec3* out = poly[1 - cur];
     int m = 0;
-    for (int i = 0; i < count; ++i) {
-      const Vec3& P = in[i];
-      const Vec3& Q = in[(i + 1) % count];
+    for (int i = 0; i < in->count; ++i) {
+      const Vec3& P = in->corner[i];
+      const Vec3& Q = in->corner[(i + 1) % in->count];
       const double dp = normal.dot(P) - limit, dq = normal.dot(Q) - limit;
-      if (dp <= 0.0) out[m++] = P;
-      if ((dp < 0.0 && dq > 0.0) || (dp > 0.0 && dq < 0.0)) out[m++] = P + (dp / (dp - dq)) * (Q - P);
+      if (dp <= 0.0) to->corner[m++] = P;
+      if ((dp < 0.0 && dq > 0.0) || (dp > 0.0 && dq < 0.0)) to->corner[m++] = P + (dp / (dp - dq)) * (Q - P);
     }
-    count = m;
-    cur = 1 - cur;
-    return count > 0;
+    to->count = m;
+    std::swap(in, to);
+    return m > 0;
   };
   for (int k = 0; k < 3; ++k)
     for (double side : {1.0, -1.0})
       if (!clip(side * Vec3::Unit(k), half)) return false;
   for (int q = 0; q < 8; ++q)
     if (!clip(Vec3(q & 1 ? -1.0 : 1.0, q & 2 ? -1.0 : 1.0, q & 4 ? -1.0 : 1.0), diamond)) return false;
-  lo = std::numeric_limits<double>::infinity();
-  hi = -lo;
-  for (int i = 0; i < count; ++i) {
-    const double v = n.dot(poly[cur][i]);
-    lo = std::min(lo, v);
-    hi = std::max(hi, v);
-  }
-  return true;
+  return true;  // after 14 clips (an even count) the polygon is back in out
 }
 
 /**
@@ -595,35 +618,56 @@ class SlabBuilder {
 
   /** The slab of the cell at centre along its first candidate's normal, exactly as the query uses it (8-bit m). */
   CellGrid::CellRef slab(const Vec3& centre, const Entry* candidates, std::uint32_t count) const {
-    CellGrid::CellRef ref{};
-    ref.offset = 0;
-    ref.halfWidth = 0xffff;  // with a zero normal: no slab
-    const Vec3& n = mesh_.normals[candidates[0].triangle];
-    if (n.isZero(0.0)) return ref;
-    const std::int8_t m8[3] = {quantise(n.x()), quantise(n.y()), quantise(n.z())};
-    const Vec3 m(m8[0] / 127.0, m8[1] / 127.0, m8[2] / 127.0);
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    Range along(mesh_.normals[candidates[0].triangle]);
+    Polygon part;
     for (std::uint32_t i = 0; i < count; ++i) {
       const std::size_t t = candidates[i].triangle;
-      double l, u;
-      if (clippedRange(mesh_.vertex(t, 0) - centre, mesh_.vertex(t, 1) - centre, mesh_.vertex(t, 2) - centre, half_,
-                       diamond_, m, l, u)) {
-        lo = std::min(lo, l);
-        hi = std::max(hi, u);
-      }
+      const Vec3 a = mesh_.vertex(t, 0) - centre, b = mesh_.vertex(t, 1) - centre, c = mesh_.vertex(t, 2) - centre;
+      // The clipped part's range lies within the corners' range: when that adds nothing, neither can the clip
+      // (the same slab, without clipping the many small triangles of a crowded cell).
+      if (along.holds(a, b, c)) continue;
+      if (!clipToRegion(a, b, c, half_, diamond_, part)) continue;
+      for (int k = 0; k < part.count; ++k) along.add(part.corner[k]);
     }
-    if (!(lo <= hi)) return ref;
-    const double mid = std::round(0.5 * (lo + hi) / unit_);
-    const double width = std::ceil(std::max(hi - mid * unit_, mid * unit_ - lo) / unit_) + 1.0;
-    if (std::abs(mid) <= 32767.0 && width <= 65535.0) {
-      for (int j = 0; j < 3; ++j) ref.normal[j] = m8[j];
-      ref.offset = static_cast<std::int16_t>(mid);
-      ref.halfWidth = static_cast<std::uint16_t>(width);
-    }
-    return ref;
+    return along.slab(unit_);
   }
 
  private:
+  /** The range of the candidates along an 8-bit normal (none for a zero one). */
+  struct Range {
+    explicit Range(const Vec3& n) : m8{quantise(n.x()), quantise(n.y()), quantise(n.z())} {
+      m = n.isZero(0.0) ? Vec3::Zero() : Vec3(m8[0] / 127.0, m8[1] / 127.0, m8[2] / 127.0);
+    }
+    bool holds(const Vec3& a, const Vec3& b, const Vec3& c) const {
+      if (m.isZero(0.0)) return true;
+      const double x = m.dot(a), y = m.dot(b), z = m.dot(c);
+      return std::min({x, y, z}) >= lo && std::max({x, y, z}) <= hi;
+    }
+    void add(const Vec3& v) {
+      const double x = m.dot(v);
+      lo = std::min(lo, x);
+      hi = std::max(hi, x);
+    }
+    /** The slab (none for a zero normal, no candidate in the region, or one too wide for the 16-bit fields). */
+    CellGrid::CellRef slab(double unit) const {
+      CellGrid::CellRef ref{};
+      ref.offset = 0;
+      ref.halfWidth = 0xffff;  // no slab
+      if (m.isZero(0.0) || !(lo <= hi)) return ref;
+      const double mid = std::round(0.5 * (lo + hi) / unit);
+      const double width = std::ceil(std::max(hi - mid * unit, mid * unit - lo) / unit) + 1.0;
+      if (std::abs(mid) <= 32767.0 && width <= 65535.0) {
+        for (int j = 0; j < 3; ++j) ref.normal[j] = m8[j];
+        ref.offset = static_cast<std::int16_t>(mid);
+        ref.halfWidth = static_cast<std::uint16_t>(width);
+      }
+      return ref;
+    }
+    std::int8_t m8[3];
+    Vec3 m;
+    double lo = std::numeric_limits<double>::infinity(), hi = -std::numeric_limits<double>::infinity();
+  };
+
   const TriangleMesh& mesh_;
   const double half_, diamond_, unit_;
 };

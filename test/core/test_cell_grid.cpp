@@ -1,7 +1,9 @@
 // CellGrid, the Grid fast level's precomputed candidates, checked against its documented contract:
-// every triangle within radius + h sqrt(3)/2 of a cell's centre is listed, entries are sorted, the
-// float centre distance is rounded down, and the float supporting-plane bound (minus slack) never
-// exceeds the true distance from a point of the cell to the triangle (the float path's error bound).
+// every triangle within radius + h sqrt(3)/2 of a cell's centre is listed, entries are sorted (by the
+// centre distance to 1/256 of its code's unit, then by triangle), the float centre distance is rounded
+// down, the float supporting-plane bound (minus slack) never exceeds the true distance from a point of the
+// cell to the triangle (the float path's error bound), and a cell counts the distinct spheres listing its
+// triangles.
 
 #include <gtest/gtest.h>
 
@@ -26,10 +28,13 @@ double distanceToTriangle(const TriangleMesh& mesh, std::size_t t, const Vec3& p
   return (p - closestPointOnTriangle(p, mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2))).norm();
 }
 
-// Checks the contract on the cells of the given probes; returns the number of cells checked.
+// Checks the contract on the cells of the given probes; returns the number of cells checked. With the grid's
+// sphere set, also each cell's count of distinct spheres (those first listing its triangles).
 std::size_t checkGrid(const TriangleMesh& mesh, const CellGrid& grid, const std::vector<Vec3>& probes,
-                      const std::string& label) {
+                      const std::string& label, const ClodSphereSet* set = nullptr) {
   SCOPED_TRACE(label);
+  const std::vector<std::uint32_t> sphereOf =
+      set ? firstSphereOfTriangles(*set, mesh.size()) : std::vector<std::uint32_t>();
   const double h = grid.cellSize();
   const double reach = grid.radius() + 0.8660254037844386 * h;
   std::set<std::uint64_t> checked;
@@ -62,6 +67,7 @@ std::size_t checkGrid(const TriangleMesh& mesh, const CellGrid& grid, const std:
     const CellGrid::Cell cell = grid.cell(*ref);
     const CellGrid::Entry* e = cell.entries;
     std::vector<char> listed(mesh.size(), 0);
+    double previous = 0.0;  // the centre distance of the entry before
     for (std::uint32_t i = 0; i < cell.count; ++i) {
       const std::size_t t = e[i].triangle;
       if (t >= mesh.size()) {
@@ -69,10 +75,19 @@ std::size_t checkGrid(const TriangleMesh& mesh, const CellGrid& grid, const std:
         return checked.size();
       }
       listed[t] = 1;
+      const double dc = distanceToTriangle(mesh, t, centre);
       if (i > 0) {
         EXPECT_LE(e[i - 1].distance, e[i].distance) << "entries sorted";
+        // Within a code, nearest first (to 1/256 of the code's unit), equal distances in triangle order.
+        if (e[i - 1].distance == e[i].distance) {
+          EXPECT_LE(previous, dc + grid.distanceUnit() / 256.0 + 1e-12)
+              << "triangles " << e[i - 1].triangle << ", " << t;
+          if (previous == dc) {
+            EXPECT_LT(e[i - 1].triangle, e[i].triangle) << "equal distances in triangle order";
+          }
+        }
       }
-      const double dc = distanceToTriangle(mesh, t, centre);
+      previous = dc;
       EXPECT_LE(grid.centreDistance(e[i]), dc) << "centre distance rounded down, triangle " << t;
       EXPECT_GE(grid.centreDistance(e[i]), dc - grid.distanceUnit() - 1e-6 * h - 1e-12) << "triangle " << t;
       // The bound used to skip a triangle for this p.
@@ -82,11 +97,16 @@ std::size_t checkGrid(const TriangleMesh& mesh, const CellGrid& grid, const std:
       if (bound > truth) {
         ++failures;
         ADD_FAILURE() << "bound " << bound << " exceeds the distance " << truth << " from " << p.transpose()
-                      << " to triangle " << t << " (centre distance " << dc << ", direction " << e[i].dir(0)
-                      << " " << e[i].dir(1) << " " << e[i].dir(2) << ")";
+                      << " to triangle " << t << " (centre distance " << dc << ", direction " << e[i].dir(0) << " "
+                      << e[i].dir(1) << " " << e[i].dir(2) << ")";
       }
     }
     if (!checked.insert(key).second) continue;
+    if (set) {
+      std::set<std::uint32_t> spheres;
+      for (std::uint32_t i = 0; i < cell.count; ++i) spheres.insert(sphereOf[e[i].triangle]);
+      EXPECT_EQ(cell.spheres, spheres.size()) << "distinct spheres of the cell at " << centre.transpose();
+    }
     for (std::size_t t = 0; t < mesh.size(); ++t)
       if (!listed[t] && distanceToTriangle(mesh, t, centre) <= reach * (1 - 1e-9)) {
         ++failures;
@@ -113,7 +133,7 @@ TEST(CellGrid, ContractOnSharedMeshes) {
       const CellGrid grid(*mesh, set, radius);
       EXPECT_FALSE(grid.empty());
       EXPECT_GE(grid.cellSize(), 2 * radius * (1 - 1e-12));
-      EXPECT_GT(checkGrid(*mesh, grid, probesNear(*mesh, 2 * radius, 3), name), 100u);
+      EXPECT_GT(checkGrid(*mesh, grid, probesNear(*mesh, 2 * radius, 3), name, &set), 100u);
     }
   }
 }
@@ -121,20 +141,51 @@ TEST(CellGrid, ContractOnSharedMeshes) {
 // Triangles in planes through the cell-centre lattice (x = y): a cell centre can lie on a triangle
 // to within rounding, where the direction from the triangle to the centre is noise.
 TEST(CellGrid, ContractOnPlanesThroughCellCentres) {
-  const auto mesh = std::make_shared<const TriangleMesh>(
-      makeMesh({Vec3(3, 3, 2), Vec3(3, 3, 0), Vec3(0, 0, 0), Vec3(3.0000009536743164, 2, 3), Vec3(3, 4, 5), Vec3(3, 2, 5)},
-               {{0, 1, 2}, {3, 4, 5}}, "fuzz-two-triangles"));
+  const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(
+      {Vec3(3, 3, 2), Vec3(3, 3, 0), Vec3(0, 0, 0), Vec3(3.0000009536743164, 2, 3), Vec3(3, 4, 5), Vec3(3, 2, 5)},
+      {{0, 1, 2}, {3, 4, 5}}, "fuzz-two-triangles"));
   const ClodSphereSet set = ClodBuilder(mesh).build(0.0);
   const CellGrid grid(*mesh, set, 0.01 * mesh->diagonal());
   std::vector<Vec3> probes = probesNear(*mesh, 0.02, 5);
   probes.push_back(Vec3(3, 3, 0));
   checkGrid(*mesh, grid, probes, "two triangles");
   // A square in the plane x = y, both orientations.
-  const auto diag = std::make_shared<const TriangleMesh>(makeMesh(
-      {Vec3(0, 0, 0), Vec3(1, 1, 0), Vec3(1, 1, 1), Vec3(0, 0, 1)}, {{0, 1, 2}, {0, 2, 3}, {0, 2, 1}, {0, 3, 2}}, "x=y"));
+  const auto diag =
+      std::make_shared<const TriangleMesh>(makeMesh({Vec3(0, 0, 0), Vec3(1, 1, 0), Vec3(1, 1, 1), Vec3(0, 0, 1)},
+                                                    {{0, 1, 2}, {0, 2, 3}, {0, 2, 1}, {0, 3, 2}}, "x=y"));
   const ClodSphereSet diagSet = ClodBuilder(diag).build(0.0);
   for (double radius : {0.005, 0.01, 0.0125, 0.02})
-    checkGrid(*diag, CellGrid(*diag, diagSet, radius), probesNear(*diag, 2 * radius, 7), "x=y r=" + std::to_string(radius));
+    checkGrid(*diag, CellGrid(*diag, diagSet, radius), probesNear(*diag, 2 * radius, 7),
+              "x=y r=" + std::to_string(radius));
+}
+
+// Cells of hundreds of candidates (triangles far smaller than a cell, as on a finely subdivided scan): the
+// candidates of many z slices, each collected by two threads and sorted apart, keep the contract once merged, and
+// the grid is the same whatever the slicing.
+TEST(CellGrid, ContractOnCrowdedCells) {
+  const auto mesh = std::make_shared<const TriangleMesh>(clod_test::heightField(
+      120, [](double x, double y) { return 0.1 * std::sin(3.0 * (x + 1.0)) * std::cos(2.5 * (y + 1.0)); },
+      Eigen::Matrix3d::Identity(), Vec3::Zero()));
+  const ClodSphereSet set = ClodBuilder(mesh).build(0.02);
+  const CellGrid whole(*mesh, set, 0.16);
+  const CellGrid sliced(*mesh, set, 0.16, 24.0, CellGrid::Index::Auto, 3000.0);
+  EXPECT_GT(whole.largestCell(), 200u);
+  std::vector<Vec3> probes = nearSurfaceProbes(*mesh, 600, 0.16, 23);
+  EXPECT_GT(checkGrid(*mesh, sliced, probes, "crowded, sliced", &set), 20u);
+  ASSERT_EQ(whole.entries(), sliced.entries());
+  for (const Vec3& p : probes) {
+    const CellGrid::CellRef* a = whole.find(whole.keyOf(p));
+    const CellGrid::CellRef* b = sliced.find(sliced.keyOf(p));
+    ASSERT_EQ(a == nullptr, b == nullptr);
+    if (a == nullptr) continue;
+    const CellGrid::Cell ca = whole.cell(*a), cb = sliced.cell(*b);
+    ASSERT_EQ(ca.count, cb.count);
+    for (std::uint32_t i = 0; i < ca.count; ++i) {
+      ASSERT_EQ(ca.entries[i].triangle, cb.entries[i].triangle);
+      ASSERT_EQ(ca.entries[i].distance, cb.entries[i].distance);
+    }
+    EXPECT_EQ(a->halfWidth, b->halfWidth);
+  }
 }
 
 // The dense bit index and the hash table find the same cells with the same candidates and proofs, and
@@ -256,7 +307,8 @@ TEST(CellGrid, CellsGrowOnlyAsFarAsTheBudgetNeeds) {
 TEST(CellGrid, BadRadiusThrows) {
   const auto mesh = clod_test::loadNormalized(clod_test::testData("cube.obj"));
   const ClodSphereSet set = ClodBuilder(mesh).build(0.0);
-  for (double r : {0.0, -1.0, std::nan(""), double(INFINITY)}) EXPECT_THROW(CellGrid(*mesh, set, r), InvalidParameter) << r;
+  for (double r : {0.0, -1.0, std::nan(""), double(INFINITY)})
+    EXPECT_THROW(CellGrid(*mesh, set, r), InvalidParameter) << r;
 }
 
 TEST(CellGrid, OutsideKeyForFarPoints) {

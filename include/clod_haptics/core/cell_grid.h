@@ -106,9 +106,10 @@ class ReallocArray {
  * empty cell means no contact and no precise work at all.
  *
  * A cell of side h keeps every triangle whose distance to the cell's centre is at most
- * radius + h sqrt(3) / 2 (an exact test, so no candidate is missed), sorted by that distance, so a
- * query stops at the first candidate whose lower bound (distance to the centre minus the pointer's
- * offset from the centre) exceeds the best distance so far. Immutable after construction.
+ * radius + h sqrt(3) / 2 (an exact test, so no candidate is missed), sorted by that distance (to 1/256 of
+ * its 8-bit code's unit, then by triangle), so a query stops at the first candidate whose lower bound
+ * (distance to the centre minus the pointer's offset from the centre) exceeds the best distance so far.
+ * Immutable after construction.
  *
  * Layout, for a query bound by memory latency: one array of 8-byte entries where each non-empty cell
  * is a header (its candidate and sphere counts) followed by its candidates, so a query touches one
@@ -129,7 +130,7 @@ class CellGrid {
     std::uint32_t triangle;
     /**
      * Distance dc from the cell centre to the triangle in units of distanceUnit() (reach / 255),
-     * rounded down: a lower bound, in the order of the true distances.
+     * rounded down: a lower bound. A cell's entries are nearest first (see the class comment).
      */
     std::uint8_t distance;
     /**

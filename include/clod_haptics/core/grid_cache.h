@@ -16,7 +16,7 @@ namespace clod_haptics {
  * \brief Version of the binary grid cache format; part of every grid file's name and header. Bump it whenever
  * CellGrid's layout or its build (cell sizing, candidates, slabs) changes: a file answers as the build that wrote it.
  */
-constexpr std::uint32_t kGridCacheFormatVersion = 2;
+constexpr std::uint32_t kGridCacheFormatVersion = 3;
 
 /** \brief What a cached grid was built from: the level (mesh, d, its sphere set) and CellGrid's parameters. */
 struct GridCacheKey {
