@@ -616,20 +616,31 @@ class SlabBuilder {
         diamond_((1.5 * h + kSqrt3 * radius) * (1.0 + 1e-9) + 2.0 * pad),
         unit_(unit) {}
 
-  /** The slab of the cell at centre along its first candidate's normal, exactly as the query uses it (8-bit m). */
+  /**
+   * The slab of the cell at centre, exactly as the query uses it (8-bit normal): the narrower of two, along the
+   * normal of the first candidate and along the mean normal of the candidates nearest the centre (within 1/16 of
+   * the reach of the first: on a curved surface their mean is closer to the surface's normal over the cell). Both
+   * ranges come from one pass, each candidate clipped at most once.
+   */
   CellGrid::CellRef slab(const Vec3& centre, const Entry* candidates, std::uint32_t count) const {
-    Range along(mesh_.normals[candidates[0].triangle]);
+    Vec3 sum = Vec3::Zero();
+    for (std::uint32_t i = 0; i < count && candidates[i].distance <= candidates[0].distance + 16; ++i)
+      sum += mesh_.normals[candidates[i].triangle];
+    Range along[2] = {Range(mesh_.normals[candidates[0].triangle]),
+                      Range(sum.norm() > 0.5 ? Vec3(sum.normalized()) : Vec3::Zero())};
     Polygon part;
     for (std::uint32_t i = 0; i < count; ++i) {
       const std::size_t t = candidates[i].triangle;
       const Vec3 a = mesh_.vertex(t, 0) - centre, b = mesh_.vertex(t, 1) - centre, c = mesh_.vertex(t, 2) - centre;
       // The clipped part's range lies within the corners' range: when that adds nothing, neither can the clip
       // (the same slab, without clipping the many small triangles of a crowded cell).
-      if (along.holds(a, b, c)) continue;
+      if (along[0].holds(a, b, c) && along[1].holds(a, b, c)) continue;
       if (!clipToRegion(a, b, c, half_, diamond_, part)) continue;
-      for (int k = 0; k < part.count; ++k) along.add(part.corner[k]);
+      for (Range& r : along)
+        for (int k = 0; k < part.count; ++k) r.add(part.corner[k]);
     }
-    return along.slab(unit_);
+    const CellGrid::CellRef first = along[0].slab(unit_), mean = along[1].slab(unit_);
+    return mean.halfWidth < first.halfWidth ? mean : first;
   }
 
  private:

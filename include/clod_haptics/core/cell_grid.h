@@ -120,8 +120,8 @@ class ReallocArray {
  * Beside its index entry each cell keeps a cheap proof of "no contact", so most pointers near but not
  * on the surface are answered without reading the cell's candidates: a slab
  * |m . (p - centre) - offset| <= halfWidth holding every candidate's part within reach of the cell
- * (m: the first candidate's normal, 8 bits per component); a pointer farther than r from the slab
- * touches nothing.
+ * (m, 8 bits per component: the first candidate's normal or the mean normal of the candidates nearest
+ * the centre, whichever gives the narrower slab); a pointer farther than r from the slab touches nothing.
  */
 class CellGrid {
  public:
