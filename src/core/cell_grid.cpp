@@ -40,13 +40,7 @@ double cellsOfBox(const std::int64_t dims[3]) {
   return static_cast<double>(dims[0]) * static_cast<double>(dims[1]) * static_cast<double>(dims[2]);
 }
 
-/** Round to nearest, halves away from zero (std::lround's rule, without its library call: millions per grid). */
-std::int8_t quantise(double u) {
-  const double v = std::clamp(u, -1.0, 1.0) * 127.0;          // NaN stays NaN: clamp returns it, the casts give 0
-  const int whole = std::isnan(v) ? 0 : static_cast<int>(v);  // toward zero; v - whole is exact
-  const double rest = std::isnan(v) ? 0.0 : v - whole;
-  return static_cast<std::int8_t>(whole + (rest >= 0.5) - (rest <= -0.5));
-}
+std::int8_t quantise(double u) { return static_cast<std::int8_t>(std::lround(std::clamp(u, -1.0, 1.0) * 127.0)); }
 
 // ---- Cell size and placement ----
 
@@ -249,8 +243,7 @@ class CandidateCollector {
         g_(g),
         unit_(distanceUnit),
         planeLimit_(g.reach + 1e-9 * g.h + f.pad),  // slack for the rounding of the plane distance
-        tiny_(std::max(1e-9 * g.h, 4e-9 * f.magnitude)),
-        rangeSlack_(1e-6 * g.h + 4.0 * f.pad) {}
+        tiny_(std::max(1e-9 * g.h, 4e-9 * f.magnitude)) {}
 
   /** Appends the candidates of the triangles [begin, end) in the cells of z in [zBegin, zEnd). */
   void collect(const std::uint32_t* begin, const std::uint32_t* end, std::int64_t zBegin, std::int64_t zEnd,
@@ -278,28 +271,9 @@ class CandidateCollector {
     l[2] = std::max(l[2], zBegin);
     u[2] = std::min(u[2], zEnd - 1);
     if (l[2] > u[2]) return;
-    // Each column's cells narrowed to the z range where a centre can pass the two tests below: the ball, and the
-    // plane when it is not steep in z. Both ranges are widened by rangeSlack_, far beyond their rounding (the
-    // tests themselves then decide, as for every cell of the box before).
-    const double ballWide = ball + rangeSlack_, ballWide2 = ballWide * ballWide;
-    const bool planeRange = planar && std::abs(n.z()) >= 0.05;
-    const double planeWide = planeLimit_ + rangeSlack_;
-    for (std::int64_t x = l[0]; x <= u[0]; ++x) {
-      const double dx = g_.origin.x() + (static_cast<double>(x) + 0.5) * g_.h - mid.x();
-      for (std::int64_t y = l[1]; y <= u[1]; ++y) {
-        const double dy = g_.origin.y() + (static_cast<double>(y) + 0.5) * g_.h - mid.y();
-        const double rem = ballWide2 - dx * dx - dy * dy;
-        if (rem < 0.0) continue;
-        const double half = std::sqrt(rem);
-        double zLo = mid.z() - half, zHi = mid.z() + half;
-        if (planeRange) {  // |n . (centre - a)| <= limit, solved for the centre's z
-          const double w = n.x() * (dx + mid.x() - a.x()) + n.y() * (dy + mid.y() - a.y());
-          const double p = (-planeWide - w) / n.z(), q = (planeWide - w) / n.z();
-          zLo = std::max(zLo, a.z() + std::min(p, q) - rangeSlack_);
-          zHi = std::min(zHi, a.z() + std::max(p, q) + rangeSlack_);
-        }
-        const std::int64_t zFirst = std::max(l[2], cellAtOrAbove(zLo)), zLast = std::min(u[2], cellAtOrBelow(zHi));
-        for (std::int64_t z = zFirst; z <= zLast; ++z) {
+    for (std::int64_t x = l[0]; x <= u[0]; ++x)
+      for (std::int64_t y = l[1]; y <= u[1]; ++y)
+        for (std::int64_t z = l[2]; z <= u[2]; ++z) {
           const Vec3 centre = g_.centre(x, y, z);
           // The distance to the plane is a lower bound of the distance to the triangle: most cells of
           // the box are rejected by it before the closest-point computation.
@@ -309,16 +283,6 @@ class CandidateCollector {
           const double d = toCentre.norm();
           if (d <= g_.reach) out.push_back(candidate(cellKey(x, y, z), static_cast<std::uint32_t>(t), toCentre, d));
         }
-      }
-    }
-  }
-
-  /** The first and last cell of z whose centre's z is at or above (at or below) v (clamped far outside). */
-  std::int64_t cellAtOrAbove(double v) const {
-    return static_cast<std::int64_t>(std::ceil(std::clamp((v - g_.origin.z()) * g_.inv - 0.5, -2.0, 1e15)));
-  }
-  std::int64_t cellAtOrBelow(double v) const {
-    return static_cast<std::int64_t>(std::floor(std::clamp((v - g_.origin.z()) * g_.inv - 0.5, -2.0, 1e15)));
   }
 
   /**
@@ -343,7 +307,6 @@ class CandidateCollector {
   double unit_;  // of the distance codes
   double planeLimit_;
   double tiny_;
-  double rangeSlack_;  // widening of the z ranges of a column: 10^-6 of a cell, and the coordinates' rounding
 };
 
 // ---- Slices of z ----
