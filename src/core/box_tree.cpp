@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "float_rounding.h"
+#include "parallel.h"
 
 namespace clod_haptics {
 namespace {
@@ -29,7 +30,44 @@ struct Builder {
   int leafSize;
   double pad;
 
+  /**
+   * Builds items[begin, end) as build() does, the root's two subtrees on two threads: the left one into nodes
+   * after the root, the right one into an array of its own, appended after the left one with its inner nodes'
+   * child indices shifted (leaves index the items, which both share): the same tree, node for node.
+   */
+  std::uint32_t buildOnTwoThreads(std::uint32_t begin, std::uint32_t end) {
+    std::uint32_t mid = 0;
+    const std::uint32_t self = open(begin, end, mid);
+    if (mid == 0) return self;
+    std::vector<BoxNode> right;
+    right.reserve(4 * std::size_t(end - mid) / static_cast<std::size_t>(leafSize) + 1);  // leaves hold >= leafSize / 2
+    Builder other{items, right, base, leafSize, pad};
+    detail::runParallel(2, [&](unsigned part) { part ? other.build(mid, end) : build(begin, mid); });
+    const auto shift = static_cast<std::uint32_t>(nodes.size());
+    for (BoxNode& node : right)
+      if (node.count == 0) node.first += shift;
+    nodes.insert(nodes.end(), right.begin(), right.end());
+    nodes[self].first = shift;
+    nodes[self].count = 0;
+    return self;
+  }
+
   std::uint32_t build(std::uint32_t begin, std::uint32_t end) {
+    std::uint32_t mid = 0;
+    const std::uint32_t self = open(begin, end, mid);
+    if (mid == 0) return self;
+    build(begin, mid);
+    const std::uint32_t right = build(mid, end);
+    nodes[self].first = right;
+    nodes[self].count = 0;
+    return self;
+  }
+
+  /**
+   * Appends the node of items[begin, end): a leaf (mid stays 0), or an inner node whose items are split at mid
+   * (the median along the longest axis of their centres), its child index left for the caller.
+   */
+  std::uint32_t open(std::uint32_t begin, std::uint32_t end, std::uint32_t& mid) {
     constexpr double kBig = std::numeric_limits<double>::max();
     double lo[3] = {kBig, kBig, kBig}, hi[3] = {-kBig, -kBig, -kBig};
     double clo[3] = {kBig, kBig, kBig}, chi[3] = {-kBig, -kBig, -kBig};
@@ -58,21 +96,20 @@ struct Builder {
     int axis = 0;
     for (int k = 1; k < 3; ++k)
       if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
-    const std::uint32_t mid = begin + (end - begin) / 2;
+    mid = begin + (end - begin) / 2;
     std::nth_element(items + begin, items + mid, items + end,
                      [axis](const Item& a, const Item& b) { return a.c[axis] < b.c[axis]; });
-    build(begin, mid);
-    const std::uint32_t right = build(mid, end);
-    nodes[self].first = right;
-    nodes[self].count = 0;
     return self;
   }
 };
 
+// Below this many items a tree builds in well under a millisecond: a thread would cost more than it saves.
+constexpr std::uint32_t kTwoThreadsFrom = 16384;
+
 }  // namespace
 
 std::uint32_t buildBoxTree(const std::vector<Eigen::AlignedBox3d>& boxes, int leafSize, double pad,
-                           std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order) {
+                           std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order, unsigned threads) {
   if (boxes.empty()) return std::numeric_limits<std::uint32_t>::max();
   const std::uint32_t base = static_cast<std::uint32_t>(order.size());
   std::vector<Item> items(boxes.size());
@@ -86,7 +123,9 @@ std::uint32_t buildBoxTree(const std::vector<Eigen::AlignedBox3d>& boxes, int le
     items[i].index = i;
   }
   Builder builder{items.data(), nodes, base, std::max(1, leafSize), pad};
-  const std::uint32_t root = builder.build(0, static_cast<std::uint32_t>(boxes.size()));
+  const auto count = static_cast<std::uint32_t>(boxes.size());
+  const std::uint32_t root =
+      threads > 1 && count >= kTwoThreadsFrom ? builder.buildOnTwoThreads(0, count) : builder.build(0, count);
   order.resize(order.size() + boxes.size());
   for (std::uint32_t i = 0; i < boxes.size(); ++i) order[base + i] = items[i].index;
   return root;

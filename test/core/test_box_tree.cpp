@@ -98,6 +98,34 @@ TEST(BoxTree, FloatBoundsContainDoubleBoxes) {
   checkTree(points, 4, 0.0);
 }
 
+// A large tree's root subtrees are built on two threads: the same tree, node for node and in the same order, as
+// one thread builds, appended after what the arrays held (the right subtree's child indices shifted), and it keeps
+// the contract checkTree checks.
+TEST(BoxTree, TwoThreadsBuildTheSameTree) {
+  std::mt19937_64 rng(7);
+  for (int leaf : {1, 4}) {
+    SCOPED_TRACE(leaf);
+    const std::vector<Box> boxes = randomBoxes(rng, 40000, 1.0, V::Zero());
+    std::vector<clod_haptics::BoxNode> one(5, clod_haptics::BoxNode{}), two(5, clod_haptics::BoxNode{});
+    std::vector<std::uint32_t> orderOne{1, 2}, orderTwo{1, 2};
+    const std::uint32_t rootOne = clod_haptics::buildBoxTree(boxes, leaf, 0.0, one, orderOne, 1);
+    const std::uint32_t rootTwo = clod_haptics::buildBoxTree(boxes, leaf, 0.0, two, orderTwo, 2);
+    EXPECT_EQ(rootOne, 5u);
+    EXPECT_EQ(rootOne, rootTwo);
+    ASSERT_EQ(one.size(), two.size());
+    for (std::size_t n = 0; n < one.size(); ++n) {
+      ASSERT_EQ(one[n].first, two[n].first) << "node " << n;
+      ASSERT_EQ(one[n].count, two[n].count) << "node " << n;
+      for (int k = 0; k < 3; ++k) {
+        ASSERT_EQ(one[n].lo[k], two[n].lo[k]) << "node " << n;
+        ASSERT_EQ(one[n].hi[k], two[n].hi[k]) << "node " << n;
+      }
+    }
+    EXPECT_EQ(orderOne, orderTwo);
+    checkTree(boxes, leaf, 0.0);
+  }
+}
+
 TEST(BoxTree, EmptyInputHasNoRoot) {
   std::vector<clod_haptics::BoxNode> nodes;
   std::vector<std::uint32_t> order;

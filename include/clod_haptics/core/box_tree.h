@@ -1,9 +1,8 @@
 #pragma once
 
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 namespace clod_haptics {
 
@@ -23,10 +22,12 @@ struct BoxNode {
  * \brief Builds a tree over items given by their boxes (median split on the longest axis of the
  * box centres), appending its nodes to nodes and the item order to order.
  * \param pad absolute padding added around every box before rounding to float
+ * \param threads 2 (the default) builds the root's two subtrees on two threads when there are many items; the
+ * tree is the same node for node with 1
  * \return index of the root in nodes, or UINT32_MAX when there are no items
  */
 std::uint32_t buildBoxTree(const std::vector<Eigen::AlignedBox3d>& boxes, int leafSize, double pad,
-                           std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order);
+                           std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order, unsigned threads = 2);
 
 /** \brief Squared distance from (px, py, pz) to a node's box, zero inside; computed in double. */
 inline double squaredDistanceToNode(const BoxNode& n, double px, double py, double pz) {
