@@ -43,17 +43,40 @@ void computeAdjacency(TriangleMesh& mesh) {
     std::uint32_t lo, hi, triangle;
     bool forward;  // the triangle runs lo -> hi
   };
-  std::vector<HalfEdge> edges;
-  edges.reserve(3 * nt);
+  // Sorted by (lo, hi, triangle): a counting sort by lo (triangles ascending within each lo, as they are met),
+  // then each lo's few edges by hi by insertion, which keeps the triangles' order: linear in the edges, where a
+  // comparison sort of the millions of a large mesh was most of its adjacency's cost.
+  std::vector<std::uint32_t> start(nv + 1, 0);
   for (std::size_t t = 0; t < nt; ++t)
     for (int k = 0; k < 3; ++k) {
       const std::uint32_t a = mesh.triangles[t][k], b = mesh.triangles[t][(k + 1) % 3];
-      if (a == b) continue;  // a repeated index is no edge
-      edges.push_back({std::min(a, b), std::max(a, b), static_cast<std::uint32_t>(t), a < b});
+      if (a != b) ++start[std::min(a, b) + 1];
     }
-  std::sort(edges.begin(), edges.end(), [](const HalfEdge& x, const HalfEdge& y) {
-    return x.lo != y.lo ? x.lo < y.lo : x.hi != y.hi ? x.hi < y.hi : x.triangle < y.triangle;
-  });
+  for (std::size_t v = 0; v < nv; ++v) start[v + 1] += start[v];
+  std::vector<HalfEdge> edges(start[nv]);
+  {
+    std::vector<std::uint32_t> next(start.begin(), start.end() - 1);
+    for (std::size_t t = 0; t < nt; ++t)
+      for (int k = 0; k < 3; ++k) {
+        const std::uint32_t a = mesh.triangles[t][k], b = mesh.triangles[t][(k + 1) % 3];
+        if (a == b) continue;  // a repeated index is no edge
+        edges[next[std::min(a, b)]++] = {std::min(a, b), std::max(a, b), static_cast<std::uint32_t>(t), a < b};
+      }
+  }
+  for (std::size_t v = 0; v < nv; ++v) {
+    if (start[v + 1] - start[v] > 32) {  // a fan's centre (thousands of edges): no quadratic insertion
+      std::sort(edges.begin() + start[v], edges.begin() + start[v + 1], [](const HalfEdge& x, const HalfEdge& y) {
+        return x.hi != y.hi ? x.hi < y.hi : x.triangle < y.triangle;
+      });
+      continue;
+    }
+    for (std::uint32_t i = start[v] + 1; i < start[v + 1]; ++i) {
+      const HalfEdge e = edges[i];
+      std::uint32_t j = i;
+      for (; j > start[v] && edges[j - 1].hi > e.hi; --j) edges[j] = edges[j - 1];
+      edges[j] = e;
+    }
+  }
   mesh.neighbours.assign(nt, {-1, -1, -1});
   auto link = [&](std::uint32_t t, std::uint32_t other) {
     for (std::int32_t& slot : mesh.neighbours[t])
@@ -84,7 +107,8 @@ void computeAdjacency(TriangleMesh& mesh) {
   for (std::size_t t = 0; t < nt; ++t)
     for (int k = 0; k < 3; ++k) {
       const std::uint32_t v = mesh.triangles[t][k];
-      const Vec3 e1 = mesh.vertex(t, (k + 1) % 3) - mesh.vertices[v], e2 = mesh.vertex(t, (k + 2) % 3) - mesh.vertices[v];
+      const Vec3 e1 = mesh.vertex(t, (k + 1) % 3) - mesh.vertices[v],
+                 e2 = mesh.vertex(t, (k + 2) % 3) - mesh.vertices[v];
       // atan2 of |cross| and dot: accurate for every angle, 0 for a zero-length edge.
       const double angle = std::atan2(e1.cross(e2).norm(), e1.dot(e2));
       const std::uint32_t slot = fill[v]++;

@@ -60,6 +60,22 @@ TEST(Adjacency, BoxIsClosedAndItsCornersAddUpToThreeRightAngles) {
 
 TEST(Adjacency, TorusIsClosed) { expectClosedManifoldAdjacency(loadMesh(CLOD_PACKAGE_DATA_DIR "/meshes/torus.obj")); }
 
+// Two apexes (vertices 0 and 1, the lowest ids, so each holds the edges to all 100 rim vertices) over a 100-gon:
+// a vertex with hundreds of edges, which the edges' sort orders apart from the few of an ordinary vertex.
+TEST(Adjacency, BipyramidWithHundredsOfEdgesAtEachApexIsClosed) {
+  const std::uint32_t rim = 100;
+  std::vector<Vec3> vertices{Vec3(0, 0, 1), Vec3(0, 0, -1)};
+  std::vector<Triangle> triangles;
+  for (std::uint32_t i = 0; i < rim; ++i) {
+    const double a = 2.0 * M_PI * i / rim;
+    vertices.push_back(Vec3(std::cos(a), std::sin(a), 0.0));
+    const std::uint32_t v = 2 + i, w = 2 + (i + 1) % rim;
+    triangles.push_back({0, v, w});
+    triangles.push_back({1, w, v});
+  }
+  expectClosedManifoldAdjacency(makeMesh(vertices, triangles, "bipyramid"));
+}
+
 TEST(Adjacency, BoundaryNonManifoldAndInconsistentEdgesHaveNoNeighbour) {
   // Two triangles sharing edge (1, 2), wound consistently: linked; their outer edges are a boundary.
   TriangleMesh m = makeMesh({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(1, 1, 0)}, {{0, 1, 2}, {2, 1, 3}});
