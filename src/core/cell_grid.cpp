@@ -171,7 +171,7 @@ struct Candidate {
   std::uint64_t key() const { return std::uint64_t{keyHigh} << 32 | keyLow; }
 };
 
-/** The order of the entries: by cell, then by distance code, then by triangle. */
+/** The order of the entries: by cell, then by distance (its code, then the finer byte), then by triangle. */
 struct ByCellThenDistance {
   bool operator()(const Candidate& p, const Candidate& q) const {
     if (p.key() != q.key()) return p.key() < q.key();
@@ -183,8 +183,9 @@ struct ByCellThenDistance {
 
 /**
  * Sorts candidates collected in ascending triangle order into ByCellThenDistance order with one stable radix sort
- * (through scratch): a pass over the 8-bit distance code, then the keys cut down to the bits their x, y and z ranges
- * use (which keeps their order), 11 bits a pass. Stable, so equal cells and codes keep the triangles' order. A slice's
+ * (through scratch): a pass over the finer byte, one over the 8-bit distance code, then the keys cut down to the
+ * bits their x, y and z ranges use (which keeps their order), 11 bits a pass. Stable, so candidates equal in all
+ * three keep the triangles' order. A slice's
  * candidates are millions: this is linear in them, where sorting each cell's run took a sixth of the grid's build
  * on meshes whose triangles are far smaller than a cell (hundreds of candidates a cell).
  */
