@@ -464,7 +464,6 @@ class CellPacker {
     if (c.key() != last_) {
       closeCell();
       spheres_ = 0;
-      ++cell_;
       header_ = at_++;
       tables.headers.push_back(header_);
       tables.keys.push_back(c.key());
@@ -473,8 +472,9 @@ class CellPacker {
     entries_[at_++] = Entry{c.triangle, c.distance, {c.direction[0], c.direction[1], c.direction[2]}};
     // A triangle no sphere lists (kept by a caller's set that breaks the coverage invariant) counts as one more.
     std::uint32_t& seen = cellOfSphere_[std::min<std::size_t>(sphereOf_[c.triangle], cellOfSphere_.size() - 1)];
-    spheres_ += seen != cell_;
-    seen = cell_;
+    const auto cell = static_cast<std::uint32_t>(tables.keys.size());  // the open cell's number, from 1
+    spheres_ += seen != cell;
+    seen = cell;
   }
   void closeCell() {
     if (last_ == CellGrid::kOutside) return;
@@ -484,10 +484,9 @@ class CellPacker {
   }
 
   ReallocArray<Entry>& entries_;
-  static constexpr std::uint32_t kNoCell = 0xffffffffu;
+  static constexpr std::uint32_t kNoCell = 0;  // no cell yet: cells are numbered from 1
   const std::vector<std::uint32_t> sphereOf_;  // the first sphere listing each triangle
   std::vector<std::uint32_t> cellOfSphere_;    // per sphere (and one for none), the last cell listing it
-  std::uint32_t cell_ = kNoCell;               // the open cell's number (wraps to 0 at the first)
   std::uint32_t spheres_ = 0;                  // distinct spheres of the open cell's candidates
   std::size_t at_ = 0, header_ = 0;
   std::uint64_t last_ = CellGrid::kOutside;
