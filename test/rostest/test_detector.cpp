@@ -64,6 +64,7 @@ class DetectorClient {
       t.transform.rotation.z = q.z();
       t.transform.rotation.w = q.w();
       staticBroadcaster_.sendTransform(t);
+      transformToReach_ = true;
     }
     ros::NodeHandle dnh(ns_);
     dnh.param("pointer_radius", radius_, 0.002);
@@ -72,11 +73,28 @@ class DetectorClient {
     posePub_ = nh_.advertise<geometry_msgs::PoseStamped>("/phantom/pose", 1000);
   }
 
-  /** Waits for the first level and the connections. */
+  /**
+   * Waits for the first level and the connections and, when the test broadcasts the mesh frame, until the
+   * detector's tf2 buffer has that transform: the detector drops (and counts) a pose in a frame it cannot transform
+   * yet, and /tf_static reaches it some time after the broadcaster advertises. Warm-up poses far from the mesh are
+   * published until one is answered.
+   */
   bool waitReady(double seconds = 60.0) {
-    return clod_haptics_test::waitUntil(
+    const bool ready = clod_haptics_test::waitUntil(
         [&] { return status().level_spheres > 0 && posePub_.getNumSubscribers() > 0 && answers_.connected(); }, seconds,
         0.02);
+    if (!ready || !transformToReach_) return ready;
+    const Vec3 farAway = meshToPose_ * (mesh_.modelBounds().max() + Vec3::Constant(10.0 * radius_));
+    const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(seconds);
+    while (ros::WallTime::now() < deadline) {
+      Contact c;
+      geometry_msgs::WrenchStamped f;
+      if (waitAnswer(publish(farAway), c, f, 0.5)) {
+        transformToReach_ = false;
+        return true;
+      }
+    }
+    return false;
   }
 
   /** Publishes a pose (position in the pose frame) with a fresh unique stamp; returns the stamp. */
@@ -195,7 +213,8 @@ class DetectorClient {
   Eigen::Isometry3d meshToPose_ = Eigen::Isometry3d::Identity();
   double radius_ = 0.002;
   double stiffness_ = 500.0;
-  bool proxyModel_ = true;  // the detector's force_model
+  bool proxyModel_ = true;         // the detector's force_model
+  bool transformToReach_ = false;  // the mesh frame is broadcast and no pose in the pose frame was answered yet
   tf2_ros::StaticTransformBroadcaster staticBroadcaster_;
   ros::Publisher posePub_;
   std::mutex mutex_;  // the stamp counter
@@ -374,8 +393,8 @@ TEST(Detector, ABurstOfPosesIsAnsweredOrCountedNeverLostSilently) {
     const Vec3& pMesh = points[k % points.size()];
     sent.emplace_back(dc.publish(dc.meshToPose() * pMesh), pMesh);  // no pause: a backlog forms
   }
-  ASSERT_TRUE(dc.waitStatus(
-      [&](const DetectorStatus& st) { return st.poses_received >= before.poses_received + n; }, 30.0))
+  ASSERT_TRUE(
+      dc.waitStatus([&](const DetectorStatus& st) { return st.poses_received >= before.poses_received + n; }, 30.0))
       << "the detector did not receive the burst";
   const std::uint64_t seq1 = dc.status().sequence;
   ASSERT_TRUE(dc.waitStatus([&](const DetectorStatus& st) { return st.sequence > seq1; }, 5.0));
