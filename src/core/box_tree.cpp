@@ -13,18 +13,19 @@ namespace {
 using detail::roundDown;
 using detail::roundUp;
 
-// One item as the build moves it: its box and centre beside its index, so that the median split and the box
-// of a range read consecutive memory (through an index array, each level of a large tree missed the cache on
-// every item). The comparisons, hence the tree, are those of a split over the index array.
+// One item as the build moves it: its centre beside its index, 32 bytes, so that the median split and the
+// centres' box of a range read consecutive memory (through an index array, each level of a large tree missed the
+// cache on every item). The items' own boxes are read once, by the leaves; an inner node's box is the union of its
+// children's (rounding outward is monotonic, so the union is the box of its items rounded). The comparisons, hence
+// the tree, are those of a split over the index array.
 struct Item {
   double c[3];
-  double lo[3];
-  double hi[3];
   std::uint32_t index;
 };
 
 struct Builder {
   Item* items;
+  const std::vector<Eigen::AlignedBox3d>& boxes;
   std::vector<BoxNode>& nodes;
   std::uint32_t base;  // position of the tree's first item in the caller's order array
   int leafSize;
@@ -41,14 +42,13 @@ struct Builder {
     if (mid == 0) return self;
     std::vector<BoxNode> right;
     right.reserve(4 * std::size_t(end - mid) / static_cast<std::size_t>(leafSize) + 1);  // leaves hold >= leafSize / 2
-    Builder other{items, right, base, leafSize, pad};
+    Builder other{items, boxes, right, base, leafSize, pad};
     detail::runParallel(2, [&](unsigned part) { part ? other.build(mid, end) : build(begin, mid); });
     const auto shift = static_cast<std::uint32_t>(nodes.size());
     for (BoxNode& node : right)
       if (node.count == 0) node.first += shift;
     nodes.insert(nodes.end(), right.begin(), right.end());
-    nodes[self].first = shift;
-    nodes[self].count = 0;
+    close(self, shift);
     return self;
   }
 
@@ -57,40 +57,57 @@ struct Builder {
     const std::uint32_t self = open(begin, end, mid);
     if (mid == 0) return self;
     build(begin, mid);
-    const std::uint32_t right = build(mid, end);
-    nodes[self].first = right;
-    nodes[self].count = 0;
+    close(self, build(mid, end));
     return self;
   }
 
+  /** Makes nodes[self] the inner node of its left child (right after it) and right: child index and box. */
+  void close(std::uint32_t self, std::uint32_t right) {
+    BoxNode& node = nodes[self];
+    const BoxNode& a = nodes[self + 1];
+    const BoxNode& b = nodes[right];
+    for (int k = 0; k < 3; ++k) {
+      node.lo[k] = std::min(a.lo[k], b.lo[k]);
+      node.hi[k] = std::max(a.hi[k], b.hi[k]);
+    }
+    node.first = right;
+    node.count = 0;
+  }
+
   /**
-   * Appends the node of items[begin, end): a leaf (mid stays 0), or an inner node whose items are split at mid
-   * (the median along the longest axis of their centres), its child index left for the caller.
+   * Appends the node of items[begin, end): a leaf with its box (mid stays 0), or an inner node whose items are
+   * split at mid (the median along the longest axis of their centres), its box and child index left for close().
    */
   std::uint32_t open(std::uint32_t begin, std::uint32_t end, std::uint32_t& mid) {
     constexpr double kBig = std::numeric_limits<double>::max();
-    double lo[3] = {kBig, kBig, kBig}, hi[3] = {-kBig, -kBig, -kBig};
+    const std::uint32_t self = static_cast<std::uint32_t>(nodes.size());
+    BoxNode node{};
+    if (end - begin <= static_cast<std::uint32_t>(leafSize)) {
+      double lo[3] = {kBig, kBig, kBig}, hi[3] = {-kBig, -kBig, -kBig};
+      for (std::uint32_t i = begin; i < end; ++i) {
+        const Eigen::AlignedBox3d& box = boxes[items[i].index];
+        for (int k = 0; k < 3; ++k) {
+          lo[k] = std::min(lo[k], box.min()[k]);
+          hi[k] = std::max(hi[k], box.max()[k]);
+        }
+      }
+      for (int k = 0; k < 3; ++k) {
+        node.lo[k] = roundDown(lo[k] - pad);
+        node.hi[k] = roundUp(hi[k] + pad);
+      }
+      node.first = base + begin;
+      node.count = end - begin;
+      nodes.push_back(node);
+      return self;
+    }
+    nodes.push_back(node);
     double clo[3] = {kBig, kBig, kBig}, chi[3] = {-kBig, -kBig, -kBig};
     for (std::uint32_t i = begin; i < end; ++i) {
       const Item& it = items[i];
       for (int k = 0; k < 3; ++k) {
-        lo[k] = std::min(lo[k], it.lo[k]);
-        hi[k] = std::max(hi[k], it.hi[k]);
         clo[k] = std::min(clo[k], it.c[k]);
         chi[k] = std::max(chi[k], it.c[k]);
       }
-    }
-    const std::uint32_t self = static_cast<std::uint32_t>(nodes.size());
-    BoxNode node{};
-    for (int k = 0; k < 3; ++k) {
-      node.lo[k] = roundDown(lo[k] - pad);
-      node.hi[k] = roundUp(hi[k] + pad);
-    }
-    nodes.push_back(node);
-    if (end - begin <= static_cast<std::uint32_t>(leafSize)) {
-      nodes[self].first = base + begin;
-      nodes[self].count = end - begin;
-      return self;
     }
     // The longest axis of the centres' box, the first on ties.
     int axis = 0;
@@ -115,14 +132,10 @@ std::uint32_t buildBoxTree(const std::vector<Eigen::AlignedBox3d>& boxes, int le
   std::vector<Item> items(boxes.size());
   for (std::uint32_t i = 0; i < boxes.size(); ++i) {
     const Eigen::Vector3d c = boxes[i].center();
-    for (int k = 0; k < 3; ++k) {
-      items[i].c[k] = c[k];
-      items[i].lo[k] = boxes[i].min()[k];
-      items[i].hi[k] = boxes[i].max()[k];
-    }
+    for (int k = 0; k < 3; ++k) items[i].c[k] = c[k];
     items[i].index = i;
   }
-  Builder builder{items.data(), nodes, base, std::max(1, leafSize), pad};
+  Builder builder{items.data(), boxes, nodes, base, std::max(1, leafSize), pad};
   const auto count = static_cast<std::uint32_t>(boxes.size());
   const std::uint32_t root =
       threads > 1 && count >= kTwoThreadsFrom ? builder.buildOnTwoThreads(0, count) : builder.build(0, count);
