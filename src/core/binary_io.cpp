@@ -1,13 +1,13 @@
 #include "binary_io.h"
 
-#include <cinttypes>
-#include <cstdio>
-#include <fstream>
-
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
+
+#include <cinttypes>
+#include <cstdio>
+#include <fstream>
 
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/sphere_cache.h"
@@ -22,7 +22,7 @@ ByteWriter::ByteWriter(const CacheMagic& magic, std::uint32_t version, std::size
 }
 
 void ByteWriter::writeWithChecksum(const std::string& path, const char* kind) {
-  put(fnv1a64(buffer_.data(), buffer_.size()));
+  put(cacheChecksum(buffer_.data(), buffer_.size()));
   const std::string prefix = std::string("cannot write ") + kind + " file '" + path + "': ";
   std::ofstream file(path, std::ios::binary | std::ios::trunc);
   if (!file) throw FormatError(prefix + "cannot open it");
@@ -31,13 +31,15 @@ void ByteWriter::writeWithChecksum(const std::string& path, const char* kind) {
   if (!file) throw FormatError(prefix + "write failed");
 }
 
-void ByteReader::expectArrays(std::initializer_list<std::pair<std::uint64_t, std::size_t>> countsAndSizes) const {
+void ByteReader::expectArraysIn(std::initializer_list<std::pair<std::uint64_t, std::size_t>> countsAndSizes,
+                                bool whole) const {
   std::uint64_t total = 0;
   for (const auto& [count, size] : countsAndSizes) {
     if (count > remaining()) fail("array sizes do not match the file size");
     total += count * size;
+    if (total > remaining()) fail("array sizes do not match the file size");
   }
-  if (total != remaining()) fail("array sizes do not match the file size");
+  if (whole && total != remaining()) fail("array sizes do not match the file size");
 }
 
 void ByteReader::fail(const std::string& why) const {
@@ -72,7 +74,7 @@ ByteReader openCacheFile(const char* data, std::size_t size, const CacheMagic& m
   std::uint64_t stored;
   if (size < sizeof(CacheMagic) + sizeof(stored)) whole.fail("too short to be a cache file");
   std::memcpy(&stored, data + size - sizeof(stored), sizeof(stored));
-  if (fnv1a64(data, size - sizeof(stored)) != stored) whole.fail("checksum mismatch (corrupt file)");
+  if (cacheChecksum(data, size - sizeof(stored)) != stored) whole.fail("checksum mismatch (corrupt file)");
 
   ByteReader body(data, size - sizeof(stored), kind, path);
   char found[sizeof(CacheMagic)];

@@ -1,7 +1,7 @@
 #pragma once
 // Internal to the core's .cpp files (not API): the byte buffers of the binary cache files (mesh_cache.cpp,
 // sphere_cache.cpp). A cache file is an 8-byte magic, a 32-bit format version, the fields in the machine's
-// byte order, then the checksum fnv1a64 of every byte before it.
+// byte order, then the checksum (cacheChecksum) of every byte before it.
 
 #include <cstddef>
 #include <cstdint>
@@ -94,7 +94,13 @@ class ByteReader {
    * \brief Checks that arrays of the given element counts and sizes fill the rest of the range exactly, before
    * anything is allocated from counts read in the file. No count exceeds the bytes left, so no product overflows.
    */
-  void expectArrays(std::initializer_list<std::pair<std::uint64_t, std::size_t>> countsAndSizes) const;
+  void expectArrays(std::initializer_list<std::pair<std::uint64_t, std::size_t>> countsAndSizes) const {
+    expectArraysIn(countsAndSizes, true);
+  }
+  /** \brief As expectArrays, for arrays that more sections follow: they fit in the rest of the range. */
+  void expectArraysWithin(std::initializer_list<std::pair<std::uint64_t, std::size_t>> countsAndSizes) const {
+    expectArraysIn(countsAndSizes, false);
+  }
 
   /** \brief Bytes not read yet. */
   std::size_t remaining() const { return size_ - pos_; }
@@ -103,6 +109,7 @@ class ByteReader {
 
  private:
   [[noreturn]] void failTruncated(const char* field) const;
+  void expectArraysIn(std::initializer_list<std::pair<std::uint64_t, std::size_t>> countsAndSizes, bool whole) const;
 
   const char* data_;
   std::size_t size_;

@@ -144,4 +144,52 @@ std::uint32_t buildBoxTree(const std::vector<Eigen::AlignedBox3d>& boxes, int le
   return root;
 }
 
+std::string boxTreeProblem(const std::vector<BoxNode>& nodes, const std::vector<std::uint32_t>& order,
+                           std::size_t items, const std::function<bool(const BoxNode&, std::uint32_t)>& holds,
+                           const std::string& item) {
+  const std::size_t size = nodes.size();
+  if (order.size() != items) return "the tree does not order every " + item + " once";
+  if (items == 0) return size == 0 ? "" : "nodes without a " + item;
+  if (size == 0 || size > 2 * items) return "node count out of range";
+  std::vector<std::uint8_t> seen(items, 0);
+  std::vector<std::uint32_t> depth(size, 0);
+  std::uint32_t next = 0;      // nodes must appear in depth-first order: each visited node is the next index
+  std::uint32_t nextItem = 0;  // and leaves take consecutive runs of the order array
+  std::uint32_t stack[kMaxBoxTreeDepth + 2];
+  int top = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    const std::uint32_t i = stack[--top];
+    if (i != next++) return "the nodes are not in depth-first order";
+    const BoxNode& node = nodes[i];
+    for (int k = 0; k < 3; ++k)
+      if (!(node.lo[k] <= node.hi[k])) return "a node's box is empty or not finite";
+    if (node.count > 0) {
+      if (node.first != nextItem || node.count > items - nextItem) return "a leaf's run is out of place";
+      nextItem += node.count;
+      for (std::uint32_t j = node.first; j < node.first + node.count; ++j) {
+        const std::uint32_t at = order[j];
+        if (at >= items || seen[at]) return "a " + item + " is out of range or in two leaves";
+        seen[at] = 1;
+        if (!holds(node, at)) return "a leaf's box misses a " + item;
+      }
+      continue;
+    }
+    const std::uint32_t left = i + 1, right = node.first;
+    if (!(right > left && right < size)) return "an inner node's children are out of place";
+    if (depth[i] >= kMaxBoxTreeDepth) return "the tree is too deep";
+    for (const std::uint32_t c : {left, right}) {
+      const BoxNode& child = nodes[c];
+      for (int k = 0; k < 3; ++k)
+        if (!(node.lo[k] <= child.lo[k] && node.hi[k] >= child.hi[k])) return "a node's box misses a child's";
+      depth[c] = depth[i] + 1;
+    }
+    stack[top++] = right;
+    stack[top++] = left;
+  }
+  if (next != size) return "nodes unreachable from the root";
+  if (nextItem != items) return "the leaves do not cover the order";
+  return "";
+}
+
 }  // namespace clod_haptics

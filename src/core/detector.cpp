@@ -212,53 +212,6 @@ std::vector<double> paddedSpheres(const ClodSphereSet& s, double pad) {
   return data;
 }
 
-/** The boxes of the spheres' balls. */
-std::vector<Eigen::AlignedBox3d> ballBoxes(const ClodSphereSet& s) {
-  std::vector<Eigen::AlignedBox3d> boxes(s.size());
-  for (std::size_t i = 0; i < s.size(); ++i)
-    boxes[i] =
-        Eigen::AlignedBox3d(s.centres[i] - Vec3::Constant(s.radii[i]), s.centres[i] + Vec3::Constant(s.radii[i]));
-  return boxes;
-}
-
-/**
- * A box tree over the spheres' centres (leaves of 4) and, per node, the largest padded radius below it rounded up
- * to float: sqrt(distance to the node's box) - that radius bounds |p - c| - radius from below for every sphere
- * in the node, the pruning bound of spheres mode's nearest-surface search.
- */
-void buildGapTree(const ClodSphereSet& s, double pad, std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order,
-                  std::vector<float>& maxRadius) {
-  std::vector<Eigen::AlignedBox3d> points(s.size());
-  for (std::size_t i = 0; i < s.size(); ++i) points[i] = Eigen::AlignedBox3d(s.centres[i], s.centres[i]);
-  if (buildBoxTree(points, 4, pad, nodes, order) == kNone) return;
-  maxRadius.assign(nodes.size(), 0.0f);
-  // Children follow their parent in the array (left at +1, right at first): fill from the back.
-  for (std::size_t n = nodes.size(); n-- > 0;) {
-    const BoxNode& node = nodes[n];
-    float m = 0.0f;
-    if (node.count > 0) {
-      for (std::uint32_t j = node.first; j < node.first + node.count; ++j)
-        m = std::max(m, detail::roundUp(s.radii[order[j]] + pad));
-    } else {
-      m = std::max(maxRadius[n + 1], maxRadius[node.first]);
-    }
-    maxRadius[n] = m;
-  }
-}
-
-/** Per sphere, the box of the triangles it lists intersected with its ball's box. */
-std::vector<Eigen::AlignedBox3d> tightBoxes(const TriangleMesh& m, const ClodSphereSet& s,
-                                            const std::vector<Eigen::AlignedBox3d>& balls) {
-  std::vector<Eigen::AlignedBox3d> tight(s.size());
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    tight[i].setEmpty();
-    for (const std::uint32_t* t = s.begin(i); t != s.end(i); ++t)
-      for (int v = 0; v < 3; ++v) tight[i].extend(m.vertex(*t, v));
-    tight[i] = tight[i].intersection(balls[i]);
-  }
-  return tight;
-}
-
 /**
  * One box tree per sphere over the triangles it lists, all in nodes; order lists triangle ids in leaf order
  * and root[i] is sphere i's root (kNone for an empty list).
@@ -301,7 +254,7 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   const Eigen::AlignedBox3d bounds = m.bounds();
   // Padding relative to the coordinates' magnitude: covers rounding in every bound test. The mesh's box tree is
   // padded alike, so the tree shared with the mesh is the one this detector would build.
-  pad_ = meshBoxTreePad(m);
+  pad_ = meshBoxTreePad(bounds);
   for (std::size_t i = 0; i < s.size(); ++i) {
     reachFromCentre_ = std::max(reachFromCentre_, (s.centres[i] - bounds.center()).norm() + s.radii[i]);
     reachBeyondBox_ = std::max(reachBeyondBox_, bounds.exteriorDistance(s.centres[i]) + s.radii[i]);
@@ -317,25 +270,29 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   origin_ = m.origin;
   normals_ = m.normals.data();
 
+  // A Grid detector with a source takes its trees from the source with the grid (a disk cache keeps both).
+  const double radius = fastLevel_ == FastLevel::Grid ? effectiveGridRadius(bounds, gridRadius) : 0.0;
+  const bool fromSource = radius > 0.0 && gridSource;
   if (fastLevel_ != FastLevel::Flat) {
-    const std::vector<Eigen::AlignedBox3d> balls = ballBoxes(s);
-    buildBoxTree(balls, 4, pad_, sphereNodes_, sphereOrder_);
-    buildBoxTree(tightBoxes(m, s, balls), 1, pad_, tightNodes_, tightOrder_);
-    buildGapTree(s, pad_, gapNodes_, gapOrder_, gapRadius_);
+    if (!fromSource) trees_ = buildSphereTrees(m, s, pad_);
     // The hierarchy searches each hit sphere's own triangles; the grid, beyond its radius and for the deep search,
     // all the triangles at once.
     if (fastLevel_ == FastLevel::Hierarchy)
       buildTriangleTrees(m, s, pad_, triangleNodes_, triangleOrder_, triangleRoot_);
     else {
-      meshTree_ = meshBoxTreeOf(m);
-      meshSlabs_ = clod_haptics::meshTreeSlabs(*meshTree_, m);
+      meshTree_ = meshBoxTreeOf(m, pad_);  // with its slabs
     }
   }
   // The grid last: its construction peak then meets only the trees kept, not their build's temporaries.
   if (fastLevel_ == FastLevel::Grid) {
-    const double radius = effectiveGridRadius(m, gridRadius);
     if (radius > 0.0) {
-      grid_ = gridSource ? gridSource(radius) : CellGrid(m, s, radius);
+      if (fromSource) {
+        GridParts parts = gridSource(radius);
+        grid_ = std::move(parts.grid);
+        trees_ = std::move(parts.trees);
+      } else {
+        grid_ = CellGrid(m, s, radius);
+      }
       if (grid_.radius() != radius)
         throw InvalidParameter("ClodDetector: the grid source gave a grid of radius " + std::to_string(grid_.radius()) +
                                ", expected " + std::to_string(radius));
@@ -343,8 +300,20 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
   }
 }
 
+ClodDetector::GridParts ClodDetector::buildGridParts(const TriangleMesh& mesh, const ClodSphereSet& spheres,
+                                                     double radius) {
+  GridParts parts;
+  parts.trees = buildSphereTrees(mesh, spheres, meshBoxTreePad(mesh));
+  parts.grid = CellGrid(mesh, spheres, radius);  // last: its construction peak meets only the trees kept
+  return parts;
+}
+
 double ClodDetector::effectiveGridRadius(const TriangleMesh& mesh, double gridRadius) {
-  return gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * mesh.bounds().diagonal().norm();
+  return gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : effectiveGridRadius(mesh.bounds(), gridRadius);
+}
+
+double ClodDetector::effectiveGridRadius(const Eigen::AlignedBox3d& bounds, double gridRadius) {
+  return gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * bounds.diagonal().norm();
 }
 
 namespace {
@@ -355,11 +324,9 @@ std::size_t bytesOf(const std::vector<T>& v) {
 }  // namespace
 
 std::size_t ClodDetector::bytes() const noexcept {
-  return sizeof(*this) + grid_.bytes() + bytesOf(sphereData_) + bytesOf(triangles_) + bytesOf(sphereNodes_) +
-         bytesOf(sphereOrder_) + bytesOf(tightNodes_) + bytesOf(tightOrder_) + bytesOf(triangleNodes_) +
-         bytesOf(triangleOrder_) + bytesOf(triangleRoot_) + bytesOf(sphereOfTriangle_) +
-         (meshTree_ ? bytesOf(meshTree_->nodes) + bytesOf(meshTree_->order) : 0) + bytesOf(meshSlabs_) +
-         bytesOf(gapNodes_) + bytesOf(gapOrder_) + bytesOf(gapRadius_);
+  return sizeof(*this) + grid_.bytes() + bytesOf(sphereData_) + bytesOf(triangles_) + trees_.bytes() +
+         bytesOf(triangleNodes_) + bytesOf(triangleOrder_) + bytesOf(triangleRoot_) + bytesOf(sphereOfTriangle_) +
+         (meshTree_ ? bytesOf(meshTree_->nodes) + bytesOf(meshTree_->order) + bytesOf(meshTree_->slabs) : 0);
 }
 
 inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode,
@@ -407,7 +374,7 @@ void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best
       [&](std::uint32_t t) {
         if (t != skip) batch.add(t);
       },
-      meshSlabs_.empty() ? nullptr : meshSlabs_.data());
+      meshTree_->slabs.data());
   batch.finish();
 }
 
@@ -637,7 +604,7 @@ template <class Visit>
 void ClodDetector::forEachHitSphere(double px, double py, double pz, const double& reach, bool tight,
                                     Visit&& visit) const {
   const double* sd = sphereData_.data();
-  if (fastLevel_ == FastLevel::Flat || sphereNodes_.empty() || (tight && tightNodes_.empty())) {
+  if (fastLevel_ == FastLevel::Flat || trees_.ballNodes.empty() || (tight && trees_.tightNodes.empty())) {
     const std::size_t n = spheres_->size();
     for (std::size_t i = 0; i < n; ++i) {
       const double dx = px - sd[4 * i], dy = py - sd[4 * i + 1], dz = pz - sd[4 * i + 2];
@@ -649,8 +616,8 @@ void ClodDetector::forEachHitSphere(double px, double py, double pz, const doubl
   std::uint32_t stack[64];
   int top = 0;
   stack[top++] = 0;
-  const BoxNode* nodes = tight ? tightNodes_.data() : sphereNodes_.data();
-  const std::uint32_t* order = tight ? tightOrder_.data() : sphereOrder_.data();
+  const BoxNode* nodes = tight ? trees_.tightNodes.data() : trees_.ballNodes.data();
+  const std::uint32_t* order = tight ? trees_.tightOrder.data() : trees_.ballOrder.data();
   while (top > 0) {
     const BoxNode& node = nodes[stack[--top]];
     if (squaredDistanceToNode(node, px, py, pz) > reach * reach) continue;
@@ -680,8 +647,8 @@ void ClodDetector::forEachHitSphere(double px, double py, double pz, const doubl
 // best gap so far (beyond the padding) holds no sphere that could answer; the nearer child is searched first.
 template <class Visit>
 void ClodDetector::nearestSphereSurface(const Vec3& p, double r, const double& bestGap, Visit&& visit) const {
-  const BoxNode* nodes = gapNodes_.data();
-  const float* maxRadius = gapRadius_.data();
+  const BoxNode* nodes = trees_.gapNodes.data();
+  const float* maxRadius = trees_.gapRadius.data();
   const double slack = 4.0 * pad_;
   auto bound = [&](std::uint32_t n) {
     return std::sqrt(squaredDistanceToNode(nodes[n], p.x(), p.y(), p.z())) - static_cast<double>(maxRadius[n]);
@@ -695,7 +662,7 @@ void ClodDetector::nearestSphereSurface(const Vec3& p, double r, const double& b
     if (bound(n) > limit) continue;
     const BoxNode& node = nodes[n];
     if (node.count > 0) {
-      for (std::uint32_t j = node.first; j < node.first + node.count; ++j) visit(gapOrder_[j]);
+      for (std::uint32_t j = node.first; j < node.first + node.count; ++j) visit(trees_.gapOrder[j]);
       continue;
     }
     const std::uint32_t left = n + 1, right = node.first;
@@ -722,7 +689,7 @@ inline void ClodDetector::querySpheres(const Vec3& p, double r, ContactResult& o
       bestSphere = i;
     }
   };
-  if (gapNodes_.empty()) {  // the flat level: every sphere
+  if (trees_.gapNodes.empty()) {  // the flat level: every sphere
     for (std::uint32_t i = 0; i < spheres_->size(); ++i) visit(i);
   } else {
     nearestSphereSurface(p, r, bestGap, visit);
@@ -769,8 +736,8 @@ inline void ClodDetector::search(const Vec3& p, double radius, DetectionMode mod
 void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best& best, QueryCache* cache) const {
   best.deep = true;
   Eigen::AlignedBox3d box;
-  if (!tightNodes_.empty()) {  // the root bounds every triangle (float, rounded outward)
-    const BoxNode& root = tightNodes_[0];
+  if (!trees_.tightNodes.empty()) {  // the root bounds every triangle (float, rounded outward)
+    const BoxNode& root = trees_.tightNodes[0];
     box = Eigen::AlignedBox3d(Vec3(root.lo[0], root.lo[1], root.lo[2]), Vec3(root.hi[0], root.hi[1], root.hi[2]));
   } else {
     box = mesh_->bounds();  // the flat level keeps no tree: O(triangles), only while a push is followed

@@ -84,11 +84,11 @@ CellGrid CellGrid::readFrom(detail::ByteReader& in, std::size_t triangles) {
     in.fail("grid scalars out of range");
   for (std::int64_t d : g.dims_)
     if (d < 1 || d > (1 << kBits) - 1) in.fail("grid dimensions out of range");
-  in.expectArrays({{counts[0], sizeof(Entry)},
-                   {counts[1], sizeof(Word)},
-                   {counts[2], sizeof(CellRef)},
-                   {counts[3], sizeof(std::uint32_t)},
-                   {counts[4], sizeof(Slot)}});
+  in.expectArraysWithin({{counts[0], sizeof(Entry)},  // the trees over the spheres follow (writeTrees)
+                         {counts[1], sizeof(Word)},
+                         {counts[2], sizeof(CellRef)},
+                         {counts[3], sizeof(std::uint32_t)},
+                         {counts[4], sizeof(Slot)}});
   in.readArray(g.entries_, counts[0], "the entries");
   in.readArray(g.words_, counts[1], "the dense index");
   in.readArray(g.refs_, counts[2], "the cell proofs");
@@ -171,10 +171,54 @@ std::uint64_t sphereSetHash(const ClodSphereSet& set) {
   return fnv1a64(set.triangles.data(), set.triangles.size() * sizeof(set.triangles[0]), h);
 }
 
-void writeCellGridBinary(const CellGrid& grid, const GridCacheKey& key, std::size_t triangles,
+namespace {
+
+/** The trees' arrays after their counts, as they lie in memory. */
+void writeTrees(const SphereTrees& t, ByteWriter& out) {
+  static_assert(sizeof(BoxNode) == 32, "box nodes are written as they lie in memory: no padding bytes");
+  for (std::size_t n : {t.ballNodes.size(), t.ballOrder.size(), t.tightNodes.size(), t.tightOrder.size(),
+                        t.gapNodes.size(), t.gapOrder.size(), t.gapRadius.size()})
+    out.put(static_cast<std::uint64_t>(n));
+  out.putArray(t.ballNodes);
+  out.putArray(t.ballOrder);
+  out.putArray(t.tightNodes);
+  out.putArray(t.tightOrder);
+  out.putArray(t.gapNodes);
+  out.putArray(t.gapOrder);
+  out.putArray(t.gapRadius);
+}
+
+/** Reads what writeTrees wrote and checks that the trees serve set over mesh (sphereTreesProblem). */
+SphereTrees readTrees(ByteReader& in, const TriangleMesh& mesh, const ClodSphereSet& set) {
+  std::uint64_t counts[7];
+  for (std::uint64_t& c : counts) c = in.get<std::uint64_t>("the trees' sizes");
+  in.expectArrays({{counts[0], sizeof(BoxNode)},
+                   {counts[1], sizeof(std::uint32_t)},
+                   {counts[2], sizeof(BoxNode)},
+                   {counts[3], sizeof(std::uint32_t)},
+                   {counts[4], sizeof(BoxNode)},
+                   {counts[5], sizeof(std::uint32_t)},
+                   {counts[6], sizeof(float)}});
+  SphereTrees t;
+  in.readArray(t.ballNodes, counts[0], "the ball tree");
+  in.readArray(t.ballOrder, counts[1], "the ball tree's order");
+  in.readArray(t.tightNodes, counts[2], "the tight tree");
+  in.readArray(t.tightOrder, counts[3], "the tight tree's order");
+  in.readArray(t.gapNodes, counts[4], "the gap tree");
+  in.readArray(t.gapOrder, counts[5], "the gap tree's order");
+  in.readArray(t.gapRadius, counts[6], "the gap tree's radii");
+  const std::string problem = sphereTreesProblem(t, mesh, set, meshBoxTreePad(mesh));
+  if (!problem.empty()) in.fail("the trees over the spheres: " + problem);
+  return t;
+}
+
+}  // namespace
+
+void writeCellGridBinary(const ClodDetector::GridParts& parts, const GridCacheKey& key, std::size_t triangles,
                          const std::string& path) {
+  const CellGrid& grid = parts.grid;
   if (grid.empty()) throw FormatError("cannot write grid cache file '" + path + "': empty grid");
-  ByteWriter w(kMagic, kGridCacheFormatVersion, grid.bytes() + 256);
+  ByteWriter w(kMagic, kGridCacheFormatVersion, grid.bytes() + parts.trees.bytes() + 256);
   w.put(kByteOrder);
   w.put(key.meshHash);
   w.put(key.distance);
@@ -184,18 +228,22 @@ void writeCellGridBinary(const CellGrid& grid, const GridCacheKey& key, std::siz
   w.put(static_cast<std::uint8_t>(key.index));
   w.put(static_cast<std::uint64_t>(triangles));
   grid.writeTo(w);
+  writeTrees(parts.trees, w);
   w.writeWithChecksum(path, kKind);
 }
 
-CellGrid readCellGridBinary(const std::string& path, const GridCacheKey& key, const TriangleMesh& mesh) {
+ClodDetector::GridParts readCellGridBinary(const std::string& path, const GridCacheKey& key, const TriangleMesh& mesh,
+                                           const ClodSphereSet& set) {
   detail::MappedFile file;
   const std::string unmapped = file.map(path);
   if (!unmapped.empty()) throw FormatError(std::string(kKind) + " file '" + path + "': " + unmapped);
   ByteReader r = detail::openCacheFile(file.data(), file.size(), kMagic, kGridCacheFormatVersion, kKind, path);
   readHeader(r, key, mesh);
-  CellGrid grid = CellGrid::readFrom(r, mesh.size());
-  if (bitsOf(grid.radius()) != bitsOf(key.radius)) r.fail("the grid's radius differs from the header's");
-  return grid;
+  ClodDetector::GridParts parts;
+  parts.grid = CellGrid::readFrom(r, mesh.size());
+  if (bitsOf(parts.grid.radius()) != bitsOf(key.radius)) r.fail("the grid's radius differs from the header's");
+  parts.trees = readTrees(r, mesh, set);
+  return parts;
 }
 
 std::uint64_t CellGridCache::defaultMaxBytes() {
@@ -258,8 +306,10 @@ bool CellGridCache::has(const GridCacheKey& key) const {
   return std::filesystem::is_regular_file(pathFor(normalised(key)), ec);
 }
 
-CellGrid CellGridCache::getOrBuild(const TriangleMesh& mesh, const GridCacheKey& key,
-                                   const std::function<CellGrid()>& build, CacheOutcome* outcome) {
+ClodDetector::GridParts CellGridCache::getOrBuild(const TriangleMesh& mesh, const ClodSphereSet& set,
+                                                  const GridCacheKey& key,
+                                                  const std::function<ClodDetector::GridParts()>& build,
+                                                  CacheOutcome* outcome) {
   requireNonNegative(key.distance, "clustering distance");
   if (!(key.radius > 0.0) || !std::isfinite(key.radius))
     throw InvalidParameter("cell grid radius must be finite and > 0, got " + std::to_string(key.radius));
@@ -269,20 +319,20 @@ CellGrid CellGridCache::getOrBuild(const TriangleMesh& mesh, const GridCacheKey&
   CacheOutcome& out = outcome ? *outcome : local;
   out = CacheOutcome();
   out.path = pathFor(k);
-  CellGrid grid;
+  ClodDetector::GridParts parts;
   lookUp(
-      out, start, [&] { grid = readCellGridBinary(out.path, k, mesh); },
+      out, start, [&] { parts = readCellGridBinary(out.path, k, mesh, set); },
       [&] {
         if (out.source == CacheSource::Built) misses_.fetch_add(1);
-        grid = build();
+        parts = build();
       },
-      [&](const std::string& tmp) { writeCellGridBinary(grid, k, mesh.size(), tmp); });
+      [&](const std::string& tmp) { writeCellGridBinary(parts, k, mesh.size(), tmp); });
   std::error_code ec;
   if (out.source == CacheSource::Hit)  // least recently used goes first: a hit makes the file recent
     std::filesystem::last_write_time(out.path, std::filesystem::file_time_type::clock::now(), ec);
   else
     prune(out.path);
-  return grid;
+  return parts;
 }
 
 }  // namespace clod_haptics

@@ -3,17 +3,24 @@
 #include <algorithm>
 #include <cmath>
 
+#include "clod_haptics/core/checksum.h"
 #include "parallel.h"
 
 namespace clod_haptics {
 
 namespace {
 constexpr int kLeafSize = 4;
-constexpr int kMaxDepth = 60;  // the walks' stacks hold 64 (detector) and 128 (swept query) entries
 }  // namespace
 
-double meshBoxTreePad(const TriangleMesh& mesh) {
-  const Eigen::AlignedBox3d bounds = mesh.bounds();
+std::uint64_t meshFingerprint(const TriangleMesh& mesh) {
+  const std::uint64_t sums[2] = {cacheChecksum(mesh.vertices.data(), mesh.vertices.size() * sizeof(Vec3)),
+                                 cacheChecksum(mesh.triangles.data(), mesh.triangles.size() * sizeof(Triangle))};
+  return cacheChecksum(sums, sizeof sums);
+}
+
+double meshBoxTreePad(const TriangleMesh& mesh) { return meshBoxTreePad(mesh.bounds()); }
+
+double meshBoxTreePad(const Eigen::AlignedBox3d& bounds) {
   const double magnitude = std::max(bounds.min().cwiseAbs().maxCoeff(), bounds.max().cwiseAbs().maxCoeff());
   return 1e-12 * std::max(magnitude, bounds.diagonal().norm());
 }
@@ -25,67 +32,62 @@ std::shared_ptr<const MeshBoxTree> buildMeshBoxTree(const TriangleMesh& mesh) {
     boxes[t].setEmpty();
     for (int v = 0; v < 3; ++v) boxes[t].extend(mesh.vertex(t, v));
   }
-  buildBoxTree(boxes, kLeafSize, meshBoxTreePad(mesh), tree->nodes, tree->order);
+  const double pad = meshBoxTreePad(mesh);
+  buildBoxTree(boxes, kLeafSize, pad, tree->nodes, tree->order);
+  tree->slabs = meshTreeSlabs(*tree, mesh, pad);
+  tree->servesFingerprint = meshFingerprint(mesh);
   return tree;
 }
 
 std::string meshBoxTreeProblem(const MeshBoxTree& tree, const TriangleMesh& mesh) {
+  return meshBoxTreeProblem(tree, mesh, meshBoxTreePad(mesh));
+}
+
+std::string meshBoxTreeProblem(const MeshBoxTree& tree, const TriangleMesh& mesh, double pad) {
   const std::size_t n = mesh.size(), size = tree.nodes.size();
   if (tree.order.size() != n) return "the tree does not order every triangle once";
   if (n == 0) return size == 0 ? "" : "nodes without triangles";
   if (size == 0 || size > 2 * n) return "node count out of range";
-  const double pad = meshBoxTreePad(mesh);
-  std::vector<std::uint8_t> seen(n, 0);
-  std::vector<std::uint32_t> depth(size, 0);
-  std::uint32_t next = 0;      // nodes must appear in depth-first order: each visited node is the next index
-  std::uint32_t nextItem = 0;  // and leaves take consecutive runs of the order array
-  std::uint32_t stack[kMaxDepth + 2];
-  int top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const std::uint32_t i = stack[--top];
-    if (i != next++) return "the nodes are not in depth-first order";
-    const BoxNode& node = tree.nodes[i];
-    for (int k = 0; k < 3; ++k)
-      if (!(node.lo[k] <= node.hi[k])) return "a node's box is empty or not finite";
-    if (node.count > 0) {
-      if (node.first != nextItem || node.count > n - nextItem) return "a leaf's run is out of place";
-      nextItem += node.count;
-      for (std::uint32_t j = node.first; j < node.first + node.count; ++j) {
-        const std::uint32_t t = tree.order[j];
-        if (t >= n || seen[t]) return "a triangle is out of range or in two leaves";
-        seen[t] = 1;
+  return boxTreeProblem(
+      tree.nodes, tree.order, n,
+      [&](const BoxNode& node, std::uint32_t t) {
         for (int v = 0; v < 3; ++v) {
           const Vec3& p = mesh.vertex(t, v);
           for (int k = 0; k < 3; ++k)
-            if (!(node.lo[k] <= p[k] - pad && node.hi[k] >= p[k] + pad)) return "a leaf's box misses a triangle";
+            if (!(node.lo[k] <= p[k] - pad && node.hi[k] >= p[k] + pad)) return false;
         }
-      }
-      continue;
-    }
-    const std::uint32_t left = i + 1, right = node.first;
-    if (!(right > left && right < size)) return "an inner node's children are out of place";
-    if (depth[i] >= kMaxDepth) return "the tree is too deep";
-    for (const std::uint32_t c : {left, right}) {
-      const BoxNode& child = tree.nodes[c];
-      for (int k = 0; k < 3; ++k)
-        if (!(node.lo[k] <= child.lo[k] && node.hi[k] >= child.hi[k])) return "a node's box misses a child's";
-      depth[c] = depth[i] + 1;
-    }
-    stack[top++] = right;
-    stack[top++] = left;
-  }
-  if (next != size) return "nodes unreachable from the root";
-  if (nextItem != n) return "the leaves do not cover the order";
-  return "";
+        return true;
+      },
+      "triangle");
 }
 
 std::shared_ptr<const MeshBoxTree> meshBoxTreeOf(const TriangleMesh& mesh) {
-  if (mesh.boxTree && meshBoxTreeProblem(*mesh.boxTree, mesh).empty()) return mesh.boxTree;
+  return meshBoxTreeOf(mesh, meshBoxTreePad(mesh));
+}
+
+std::shared_ptr<const MeshBoxTree> meshBoxTreeOf(const TriangleMesh& mesh, double pad) {
+  if (mesh.boxTree) {
+    const MeshBoxTree& tree = *mesh.boxTree;
+    const std::uint64_t fingerprint = meshFingerprint(mesh);
+    if (tree.servesFingerprint != 0 && tree.servesFingerprint == fingerprint && tree.slabs.size() == tree.nodes.size())
+      return mesh.boxTree;
+    if (meshBoxTreeProblem(tree, mesh, pad).empty()) {
+      auto checked = std::make_shared<MeshBoxTree>();
+      checked->nodes = tree.nodes;
+      checked->order = tree.order;
+      checked->slabs = meshTreeSlabs(tree, mesh, pad);
+      checked->servesFingerprint = fingerprint;
+      return checked;
+    }
+  }
   return buildMeshBoxTree(mesh);
 }
 
 std::vector<NodeSlab> meshTreeSlabs(const MeshBoxTree& tree, const TriangleMesh& mesh) {
+  return meshTreeSlabs(tree, mesh, meshBoxTreePad(mesh));
+}
+
+std::vector<NodeSlab> meshTreeSlabs(const MeshBoxTree& tree, const TriangleMesh& mesh, double pad) {
   const std::vector<BoxNode>& nodes = tree.nodes;
   std::vector<NodeSlab> slabs(nodes.size());
   // The run of the order array below each node: children come after their parent (the left one next), and the
@@ -101,26 +103,32 @@ std::vector<NodeSlab> meshTreeSlabs(const MeshBoxTree& tree, const TriangleMesh&
       end[i] = std::max(end[i + 1], end[n.first]);
     }
   }
-  const double pad = meshBoxTreePad(mesh);
+  // Each triangle's doubled area vector, in leaf order, once: a node sums those of its run.
+  std::vector<Vec3> areas(tree.order.size());
+  detail::runParallel(2, [&](unsigned part) {
+    const std::size_t half = areas.size() / 2;
+    for (std::size_t k = part ? half : 0; k < (part ? areas.size() : half); ++k) {
+      const std::size_t t = tree.order[k];
+      areas[k] = (mesh.vertex(t, 1) - mesh.vertex(t, 0)).cross(mesh.vertex(t, 2) - mesh.vertex(t, 0));
+    }
+  });
   auto fill = [&](std::size_t i) {
     if (end[i] - begin[i] > kSlabTriangles) return;
     const BoxNode& n = nodes[i];
     NodeSlab& s = slabs[i];
     s.centre = 0.5 * (Vec3(n.lo[0], n.lo[1], n.lo[2]) + Vec3(n.hi[0], n.hi[1], n.hi[2]));
     Vec3 sum = Vec3::Zero();  // area-weighted, so slivers and fan centres barely turn it
-    for (std::uint32_t k = begin[i]; k < end[i]; ++k) {
-      const std::size_t t = tree.order[k];
-      sum += (mesh.vertex(t, 1) - mesh.vertex(t, 0)).cross(mesh.vertex(t, 2) - mesh.vertex(t, 0));
-    }
+    for (std::uint32_t k = begin[i]; k < end[i]; ++k) sum += areas[k];
     const double length = sum.norm();
     s.normal = length > 0.0 ? Vec3(sum / length) : Vec3::Zero();
-    double thick = 0.0, radius = 0.0;
+    double thick = 0.0, radius2 = 0.0;
     for (std::uint32_t k = begin[i]; k < end[i]; ++k)
       for (int v = 0; v < 3; ++v) {
         const Vec3 m = mesh.vertex(tree.order[k], v) - s.centre;
         thick = std::max(thick, std::abs(s.normal.dot(m)));
-        radius = std::max(radius, m.norm());
+        radius2 = std::max(radius2, m.squaredNorm());
       }
+    const double radius = std::sqrt(radius2);  // the largest norm: sqrt is monotonic and correctly rounded
     // Rounded up for the rounding of these sums and of the bound's own evaluation (relative to the node and to the
     // coordinates).
     s.thick = thick * (1.0 + 1e-9) + 1e-12 * radius + pad;

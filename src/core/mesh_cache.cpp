@@ -72,7 +72,7 @@ void writeMeshBinary(const TriangleMesh& mesh, std::uint64_t sourceKey, const st
   detail::ByteWriter w(kMagic, kMeshCacheFormatVersion,
                        96 + mesh.vertices.size() * (sizeof(Vec3) + 4) +
                            mesh.triangles.size() * (sizeof(Triangle) + sizeof(Vec3) + 16) + corners * 8 +
-                           tree->nodes.size() * sizeof(BoxNode) + mesh.name.size());
+                           tree->nodes.size() * (sizeof(BoxNode) + sizeof(NodeSlab)) + mesh.name.size());
   w.put(static_cast<std::uint32_t>(mesh.flipped));
   w.put(sourceKey);
   w.put(mesh.scale);
@@ -90,17 +90,19 @@ void writeMeshBinary(const TriangleMesh& mesh, std::uint64_t sourceKey, const st
   w.putArray(mesh.cornerOffsets);
   w.putArray(mesh.cornerTriangles);
   w.putArray(mesh.cornerAngles);
+  static_assert(sizeof(NodeSlab) == 64, "slabs are written as they lie in memory: no padding bytes");
   w.putArray(tree->nodes);
   w.putArray(tree->order);
+  w.putArray(tree->slabs);
   w.putArray(mesh.name);
   w.writeWithChecksum(path, kKind);
 }
 
 TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey) {
-  std::vector<char> bytes;
-  const std::string unreadable = detail::readFileBytes(path, bytes);
-  if (!unreadable.empty()) throw FormatError(std::string(kKind) + " file '" + path + "': " + unreadable);
-  ByteReader r = detail::openCacheFile(bytes, kMagic, kMeshCacheFormatVersion, kKind, path);
+  detail::MappedFile file;  // mapped, not read into a buffer: the arrays are copied once, from the mapping
+  const std::string unmapped = file.map(path);
+  if (!unmapped.empty()) throw FormatError(std::string(kKind) + " file '" + path + "': " + unmapped);
+  ByteReader r = detail::openCacheFile(file.data(), file.size(), kMagic, kMeshCacheFormatVersion, kKind, path);
   const auto flipped = r.get<std::uint32_t>();
   if (r.get<std::uint64_t>() != sourceKey) r.fail("written for another source file or load options");
   TriangleMesh mesh;
@@ -122,6 +124,7 @@ TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey) {
                   {corners, sizeof(float)},
                   {treeNodes, sizeof(BoxNode)},
                   {nt, sizeof(std::uint32_t)},
+                  {treeNodes, sizeof(NodeSlab)},
                   {nameLength, 1}});
   if (nt == 0) r.fail("no triangles");
   r.readArray(mesh.vertices, nv);
@@ -134,10 +137,21 @@ TriangleMesh readMeshBinary(const std::string& path, std::uint64_t sourceKey) {
   auto tree = std::make_shared<MeshBoxTree>();
   r.readArray(tree->nodes, treeNodes);
   r.readArray(tree->order, nt);
+  r.readArray(tree->slabs, treeNodes);
   r.readArray(mesh.name, nameLength);
   checkMesh(r, mesh);
   const std::string treeProblem = meshBoxTreeProblem(*tree, mesh);
   if (!treeProblem.empty()) r.fail("box tree: " + treeProblem);
+  // The slabs: their shape here; what they bound rests on the checksum, as the grid's candidates do (checking it is
+  // as dear as computing them).
+  for (const NodeSlab& s : tree->slabs) {
+    const bool zeroNormal = s.normal.isZero(0.0);  // no slab, or a ball alone (triangles of no area)
+    const bool none = zeroNormal && std::isinf(s.thick) && std::isinf(s.radius);
+    const bool bound = s.centre.allFinite() && (zeroNormal || std::abs(s.normal.norm() - 1.0) < 1e-9) &&
+                       std::isfinite(s.thick) && std::isfinite(s.radius) && s.thick >= 0.0 && s.radius >= 0.0;
+    if (!none && !bound) r.fail("box tree: a node's slab is neither a bound nor none");
+  }
+  tree->servesFingerprint = meshFingerprint(mesh);
   mesh.boxTree = std::move(tree);
   return mesh;
 }

@@ -192,7 +192,8 @@ std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<con
   if (gridCache_ && fastLevel == FastLevel::Grid) {
     gridSource = [&](double radius) {
       return gridCache_->getOrBuild(
-          *mesh, gridKeyLocked(mesh, distance, *set, radius), [&] { return CellGrid(*mesh, *set, radius); }, &out.grid);
+          *mesh, *set, gridKeyLocked(mesh, distance, *set, radius),
+          [&] { return ClodDetector::buildGridParts(*mesh, *set, radius); }, &out.grid);
     };
   }
   auto detector = std::make_shared<const ClodDetector>(mesh, set, fastLevel, gridRadius, gridSource);

@@ -6,9 +6,9 @@
 #include <filesystem>
 #include <vector>
 
+#include "binary_io.h"
 #include "clod_haptics/core/atomic_file.h"
 #include "clod_haptics/core/errors.h"
-#include "binary_io.h"
 #include "enum_names.h"
 
 namespace clod_haptics {
@@ -20,7 +20,6 @@ using detail::ByteWriter;
 
 constexpr detail::CacheMagic kMagic = {'C', 'L', 'O', 'D', 'S', 'P', 'H', '\0'};
 constexpr const char* kKind = "sphere cache";
-constexpr std::uint64_t kFnvPrime = 0x100000001b3ull;
 using detail::bitsOf;
 using detail::kByteOrder;
 
@@ -78,25 +77,6 @@ void readArrays(ByteReader& r, const ArrayCounts& c, ClodSphereSet& set) {
 }
 
 }  // namespace
-
-std::uint64_t fnv1a64(const void* data, std::size_t bytes, std::uint64_t seed) {
-  // FNV-1a over 64-bit words, then the tail byte by byte: eight times fewer multiplications than byte by byte.
-  const auto* p = static_cast<const unsigned char*>(data);
-  std::uint64_t h = seed;
-  std::size_t i = 0;
-  for (; i + 8 <= bytes; i += 8) {
-    std::uint64_t word;
-    std::memcpy(&word, p + i, 8);
-    h ^= word;
-    h *= kFnvPrime;
-    h ^= h >> 29;  // fold high bits down: a word-wide xor would otherwise only reach upward
-  }
-  for (; i < bytes; ++i) {
-    h ^= p[i];
-    h *= kFnvPrime;
-  }
-  return h;
-}
 
 std::uint64_t meshContentHash(const TriangleMesh& mesh) {
   const std::uint64_t counts[2] = {mesh.vertices.size(), mesh.triangles.size()};

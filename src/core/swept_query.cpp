@@ -296,9 +296,6 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
   }
   // One tree over the mesh, shared: the grid detector's, else the mesh's own when it fits, else built here.
   tree_ = detector_ && detector_->meshTree() ? detector_->meshTree() : meshBoxTreeOf(*mesh_);
-  // Its slabs: the detector's when the tree is its, else computed here.
-  if (!(detector_ && detector_->meshTree() == tree_ && !detector_->meshTreeSlabs().empty()))
-    ownSlabs_ = meshTreeSlabs(*tree_, *mesh_);
 }
 
 const double* SweptSphereQuery::recordOf(std::uint32_t t) const noexcept {
@@ -565,7 +562,7 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
   const std::vector<BoxNode>& nodes = tree_->nodes;
   const std::vector<std::uint32_t>& order = tree_->order;
   if (nodes.empty()) return;
-  const NodeSlab* slabs = ownSlabs_.empty() ? detector_->meshTreeSlabs().data() : ownSlabs_.data();
+  const NodeSlab* slabs = tree_->slabs.data();  // one per node (meshBoxTreeOf)
   // The grown box holds every centre within R of the node's triangles; its rounding is covered by a margin.
   const double grow = R * (1.0 + 1e-12) + 1e-12 * magnitudeOf(a, a + d);
   struct Item {

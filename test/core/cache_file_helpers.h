@@ -51,7 +51,7 @@ inline void writeBytes(const std::string& path, const std::vector<char>& bytes) 
 
 /** \brief Recomputes the trailing checksum after a deliberate edit, so the edit reaches the later checks. */
 inline void fixChecksum(std::vector<char>& bytes) {
-  const std::uint64_t sum = clod_haptics::fnv1a64(bytes.data(), bytes.size() - 8);
+  const std::uint64_t sum = clod_haptics::cacheChecksum(bytes.data(), bytes.size() - 8);
   std::memcpy(bytes.data() + bytes.size() - 8, &sum, 8);
 }
 

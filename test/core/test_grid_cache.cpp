@@ -18,13 +18,13 @@
 #include <thread>
 #include <vector>
 
+#include "cache_file_helpers.h"
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/grid_cache.h"
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/scene_assets.h"
-#include "cache_file_helpers.h"
 #include "test_helpers.h"
 
 namespace {
@@ -38,10 +38,10 @@ std::shared_ptr<const TriangleMesh> torus() {
   return mesh;
 }
 
-using clod_test::TempDir;
-using clod_test::readBytes;
-using clod_test::writeBytes;
 using clod_test::fixChecksum;
+using clod_test::readBytes;
+using clod_test::TempDir;
+using clod_test::writeBytes;
 
 double ms(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
@@ -64,6 +64,12 @@ Level makeLevel(std::shared_ptr<const TriangleMesh> mesh, double distanceFractio
   l.key.setHash = sphereSetHash(*l.set);
   l.key.radius = radiusFraction * diagonal;
   return l;
+}
+
+/** A Grid detector's parts with a grid of key's options: what the cache stores. */
+ClodDetector::GridParts partsOf(const Level& l, const GridCacheKey& key, double radius) {
+  return {CellGrid(*l.mesh, *l.set, radius, key.entriesPerTriangle, key.index),
+          buildSphereTrees(*l.mesh, *l.set, meshBoxTreePad(*l.mesh))};
 }
 
 /**
@@ -96,8 +102,21 @@ void expectSameAnswers(const Level& l, const ClodDetector& built, const ClodDete
       EXPECT_EQ(a.spheresHit, b.spheresHit);
       EXPECT_EQ(a.trianglesTested, b.trianglesTested);
     }
+    // Spheres mode reads the trees over the spheres (the gap tree) that the cache keeps beside the grid.
+    for (const Vec3& p : probes) {
+      ContactResult a, b;
+      built.query(p, radius, DetectionMode::Spheres, a);
+      cached.query(p, radius, DetectionMode::Spheres, b);
+      ASSERT_EQ(a.contact, b.contact) << "spheres mode, probe " << p.transpose();
+      EXPECT_EQ(a.sphere, b.sphere);
+      EXPECT_EQ(a.distance, b.distance);
+    }
   }
   EXPECT_GT(contacts, 300u);
+}
+
+bool sameNodes(const std::vector<BoxNode>& a, const std::vector<BoxNode>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(BoxNode)) == 0;
 }
 
 void roundTrip(const Level& l, const std::string& label) {
@@ -108,11 +127,13 @@ void roundTrip(const Level& l, const std::string& label) {
     GridCacheKey key = l.key;
     key.index = index;
     auto start = std::chrono::steady_clock::now();
-    const CellGrid grid(*l.mesh, *l.set, key.radius, key.entriesPerTriangle, index);
+    const ClodDetector::GridParts parts = partsOf(l, key, key.radius);
+    const CellGrid& grid = parts.grid;
     const double buildMs = ms(start);
-    writeCellGridBinary(grid, key, l.mesh->size(), path);
+    writeCellGridBinary(parts, key, l.mesh->size(), path);
     start = std::chrono::steady_clock::now();
-    const CellGrid read = readCellGridBinary(path, key, *l.mesh);
+    const ClodDetector::GridParts readParts = readCellGridBinary(path, key, *l.mesh, *l.set);
+    const CellGrid& read = readParts.grid;
     const double readMs = ms(start);
     std::cout << "[ info     ] " << label << " " << l.mesh->size() << " triangles, index "
               << (grid.dense() ? "dense" : "hashed") << ": grid build " << buildMs << " ms, read " << readMs << " ms\n";
@@ -120,14 +141,17 @@ void roundTrip(const Level& l, const std::string& label) {
     EXPECT_EQ(read.cells(), grid.cells());
     EXPECT_EQ(read.entries(), grid.entries());
     EXPECT_EQ(read.largestCell(), grid.largestCell());
-    const ClodDetector built(l.mesh, l.set, FastLevel::Grid, key.radius, [&](double) {
-      return CellGrid(*l.mesh, *l.set, key.radius, key.entriesPerTriangle, index);
-    });
+    const SphereTrees &a = parts.trees, &b = readParts.trees;
+    EXPECT_TRUE(sameNodes(a.ballNodes, b.ballNodes) && a.ballOrder == b.ballOrder);
+    EXPECT_TRUE(sameNodes(a.tightNodes, b.tightNodes) && a.tightOrder == b.tightOrder);
+    EXPECT_TRUE(sameNodes(a.gapNodes, b.gapNodes) && a.gapOrder == b.gapOrder && a.gapRadius == b.gapRadius);
+    const ClodDetector built(l.mesh, l.set, FastLevel::Grid, key.radius,
+                             [&](double radius) { return partsOf(l, key, radius); });
     int sourced = 0;
     const ClodDetector cached(l.mesh, l.set, FastLevel::Grid, key.radius, [&](double radius) {
       ++sourced;
       EXPECT_EQ(radius, key.radius);
-      return readCellGridBinary(path, key, *l.mesh);
+      return readCellGridBinary(path, key, *l.mesh, *l.set);
     });
     EXPECT_EQ(sourced, 1);
     expectSameAnswers(l, built, cached);
@@ -135,14 +159,14 @@ void roundTrip(const Level& l, const std::string& label) {
 }
 
 TEST(GridCache, RoundTripAnswersAsTheBuiltGridAndTheBruteForce) {
-  roundTrip(makeLevel(torus(), 0.02, 0.01), "torus");
+  roundTrip(makeLevel(torus(), 0.01, 0.01), "torus");  // 697 spheres: trees of several levels
   roundTrip(makeLevel(clod_test::loadNormalized(clod_test::sharedMesh("elephant.off")), 0.02, 0.01), "elephant");
 }
 
 TEST(GridCache, DetectorRefusesAGridOfAnotherRadius) {
   const Level l = makeLevel(torus(), 0.02, 0.01);
   EXPECT_THROW(ClodDetector(l.mesh, l.set, FastLevel::Grid, l.key.radius,
-                            [&](double radius) { return CellGrid(*l.mesh, *l.set, 2.0 * radius); }),
+                            [&](double radius) { return partsOf(l, l.key, 2.0 * radius); }),
                InvalidParameter);
 }
 
@@ -204,27 +228,28 @@ TEST(GridCache, SceneAssetsRestartReadsTheGridFromTheCache) {
   EXPECT_TRUE(info.grid.path.empty());
   EXPECT_FALSE(info.gridFromCache());
   // Nor for a hierarchy-level store, whose detectors have no grid.
-  EXPECT_FALSE(SceneAssets(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Hierarchy, radius)
-                   .gridCached(torus(), d));
+  EXPECT_FALSE(
+      SceneAssets(std::make_shared<SphereSetCache>(dir.str()), FastLevel::Hierarchy, radius).gridCached(torus(), d));
 }
 
 // ---- Corrupt and stale files ----
 
 class GridCacheFiles : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() { level_ = new Level(makeLevel(torus(), 0.02, 0.01)); }
+  // d = 1% of the diagonal: 697 spheres, so the trees over them have inner nodes to corrupt.
+  static void SetUpTestSuite() { level_ = new Level(makeLevel(torus(), 0.01, 0.01)); }
   static void TearDownTestSuite() {
     delete level_;
     level_ = nullptr;
   }
 
   /** The grid of key through cache, counting builds. */
-  CellGrid get(CellGridCache& cache, const GridCacheKey& key, CacheOutcome& outcome) {
+  ClodDetector::GridParts get(CellGridCache& cache, const GridCacheKey& key, CacheOutcome& outcome) {
     return cache.getOrBuild(
-        *level_->mesh, key,
+        *level_->mesh, *level_->set, key,
         [&] {
           ++builds_;
-          return CellGrid(*level_->mesh, *level_->set, key.radius, key.entriesPerTriangle, key.index);
+          return partsOf(*level_, key, key.radius);
         },
         &outcome);
   }
@@ -250,7 +275,7 @@ class GridCacheFiles : public ::testing::Test {
     writeBytes(outcome.path, bytes);
     // The reader alone: a typed error naming why.
     try {
-      readCellGridBinary(outcome.path, key, *level_->mesh);
+      readCellGridBinary(outcome.path, key, *level_->mesh, *level_->set);
       ADD_FAILURE() << "the edited file was accepted (expected: " << why << ")";
     } catch (const FormatError& e) {
       EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
@@ -258,7 +283,7 @@ class GridCacheFiles : public ::testing::Test {
     // The cache: rejected, rebuilt, stored again.
     CellGridCache restarted(dir.str());
     const int before = builds_;
-    CellGrid grid = get(restarted, key, outcome);
+    ClodDetector::GridParts grid = get(restarted, key, outcome);
     EXPECT_EQ(outcome.source, CacheSource::Rebuilt);
     EXPECT_NE(outcome.problem.find(why), std::string::npos) << outcome.problem;
     EXPECT_EQ(builds_, before + 1);
@@ -291,6 +316,15 @@ class GridCacheFiles : public ::testing::Test {
     const std::size_t sizes[5] = {8, 16, 8, 4, 24};
     std::size_t at = kArrays;
     for (int i = 0; i < k; ++i) at += u64(b, kSizes + 8 * i) * sizes[i];
+    return at;
+  }
+  /** Offset of the trees' 7 sizes (after the grid's arrays), then of tree array k (0 ball nodes, 1 ball order, 2
+   * tight nodes, 3 tight order, 4 gap nodes, 5 gap order, 6 gap radii). */
+  static std::size_t treeSizesAt(const std::vector<char>& b) { return arrayAt(b, 5); }
+  static std::size_t treeArrayAt(const std::vector<char>& b, int k) {
+    const std::size_t sizes[7] = {32, 4, 32, 4, 32, 4, 4};
+    std::size_t at = treeSizesAt(b) + 56;
+    for (int i = 0; i < k; ++i) at += u64(b, treeSizesAt(b) + 8 * i) * sizes[i];
     return at;
   }
 
@@ -341,17 +375,17 @@ TEST_F(GridCacheFiles, StaleFilesAreRebuilt) {
 TEST_F(GridCacheFiles, FileOfAnotherMeshOrSetIsRefused) {
   TempDir dir;
   const std::string path = dir.file("g.clodgrid");
-  const CellGrid grid(*level_->mesh, *level_->set, level_->key.radius);
-  writeCellGridBinary(grid, level_->key, level_->mesh->size(), path);
+  writeCellGridBinary(partsOf(*level_, level_->key, level_->key.radius), level_->key, level_->mesh->size(), path);
   GridCacheKey other = level_->key;
   other.setHash ^= 1;
-  EXPECT_THROW(readCellGridBinary(path, other, *level_->mesh), FormatError);
+  EXPECT_THROW(readCellGridBinary(path, other, *level_->mesh, *level_->set), FormatError);
   other = level_->key;
   other.entriesPerTriangle = 12.0;
-  EXPECT_THROW(readCellGridBinary(path, other, *level_->mesh), FormatError);
+  EXPECT_THROW(readCellGridBinary(path, other, *level_->mesh, *level_->set), FormatError);
   const auto head = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
-  EXPECT_THROW(readCellGridBinary(path, level_->key, *head), FormatError) << "another mesh's triangle count";
-  EXPECT_THROW(readCellGridBinary(dir.file("missing.clodgrid"), level_->key, *level_->mesh), FormatError);
+  EXPECT_THROW(readCellGridBinary(path, level_->key, *head, *level_->set), FormatError)
+      << "another mesh's triangle count";
+  EXPECT_THROW(readCellGridBinary(dir.file("missing.clodgrid"), level_->key, *level_->mesh, *level_->set), FormatError);
 }
 
 // Edits behind a valid checksum: the range checks alone stand between the file and an out-of-bounds read.
@@ -365,7 +399,11 @@ TEST_F(GridCacheFiles, StructuralCorruptionIsATypedError) {
   };
   expectRejected(edit([](std::vector<char>& b) { set<double>(b, kCellSize, std::nan("")); }), "not finite");
   expectRejected(edit([](std::vector<char>& b) { set<std::int64_t>(b, kGrid + 80, 0); }), "dimensions");
-  expectRejected(edit([](std::vector<char>& b) { set<std::uint64_t>(b, kSizes, u64(b, kSizes) + 1); }), "array sizes");
+  // One more entry than written: the grid's arrays shift into the trees' section (or past the file's end).
+  expectRejected(edit([](std::vector<char>& b) { set<std::uint64_t>(b, kSizes, u64(b, kSizes) + 1); }),
+                 "does not match");
+  expectRejected(edit([](std::vector<char>& b) { set<std::uint64_t>(b, kSizes, u64(b, kSizes) + 1000000); }),
+                 "array sizes");
   expectRejected(edit([](std::vector<char>& b) { set<std::uint64_t>(b, kCells, u64(b, kCells) + 1); }), "cell count");
   // A candidate's triangle past the mesh; a header whose count runs past the entries.
   expectRejected(edit([&](std::vector<char>& b) { set<std::uint32_t>(b, arrayAt(b, 0) + 8, triangles); }),
@@ -398,8 +436,31 @@ TEST_F(GridCacheFiles, StructuralCorruptionIsATypedError) {
                      if (u64(b, at + 24 * s) == CellGrid::kOutside) set<std::uint64_t>(b, at + 24 * s, 5u);
                  }),
                  "hash table", CellGrid::Index::Hashed);
+  // The trees over the spheres: a ball leaf's box shrunk, an order entry out of range, the tight tree's root made a
+  // leaf over everything but its children left, a gap radius cut, the radii's count off.
+  auto firstLeaf = [](const std::vector<char>& b, std::size_t nodes) {
+    std::size_t at = nodes;
+    while (u64(b, at + 24) >> 32 == 0) at += 32;  // count (the second half of the last 8 bytes) 0: inner
+    return at;
+  };
+  expectRejected(edit([&](std::vector<char>& b) {
+                   const std::size_t leaf = firstLeaf(b, treeArrayAt(b, 0));
+                   float lo;
+                   std::memcpy(&lo, b.data() + leaf, 4);
+                   set<float>(b, leaf, lo + 1.0f);
+                 }),
+                 "ball tree");
+  expectRejected(edit([&](std::vector<char>& b) { set<std::uint32_t>(b, treeArrayAt(b, 1), 0x7fffffffu); }),
+                 "ball tree");
+  expectRejected(edit([&](std::vector<char>& b) {
+                   const std::size_t root = treeArrayAt(b, 2);
+                   set<std::uint32_t>(b, root + 24, 0u);
+                   set<std::uint32_t>(b, root + 28, static_cast<std::uint32_t>(u64(b, treeSizesAt(b) + 24)));
+                 }),
+                 "tight tree");
+  expectRejected(edit([&](std::vector<char>& b) { set<float>(b, treeArrayAt(b, 6), 0.0f); }), "gap tree");
+  expectRejected(edit([&](std::vector<char>& b) { set<std::uint64_t>(b, treeSizesAt(b) + 48, 1u); }), "array sizes");
 }
-
 
 // The grid files stay within the cache's byte budget: the least recently used go first, a hit makes a file
 // recent, the file just stored always stays, and the sphere sets beside them are never touched.

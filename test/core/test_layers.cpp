@@ -24,15 +24,16 @@ const fs::path kRoot = fs::path(CLOD_PACKAGE_DATA_DIR).parent_path();
 // Lower layers first; a core file may include files of its own layer or below, never above.
 const std::map<std::string, int> kCoreLayer = {
     {"errors", 0},           {"user_path", 0},      {"atomic_file", 0},      {"latency_histogram", 0},
-    {"parallel", 0},         {"float_rounding", 0}, {"enum_names", 0},       {"mesh", 1},
+    {"parallel", 0},         {"float_rounding", 0}, {"checksum", 0}, {"enum_names", 0},       {"mesh", 1},
     {"geometry", 1},         {"mesh_loader", 1},    {"morton", 1},           {"probes", 1},
     {"contact", 2},          {"brute_force", 2},    {"sphere_placement", 3}, {"clustering", 3},
     {"tight_clustering", 3}, {"sphere_set", 4},     {"sphere_set_io", 4},    {"box_tree", 2},
-    {"triangle_bvh", 2},     {"mesh_box_tree", 2},  {"cell_grid", 5},      {"detector", 6},         {"scene", 7},
-    {"sphere_cache", 7},     {"grid_cache", 7},     {"binary_io", 7},      {"mesh_cache", 7},       {"scene_assets", 8},
-    {"polygon_soup", 1},     {"text_scanner", 1},   {"read_off", 1},         {"read_obj", 1},
-    {"read_ply", 1},         {"read_stl", 1},
-    {"swept_query", 7},      {"swept_scene", 8},    {"haptic_renderer", 9}, {"triangle_pieces", 1},
+    {"triangle_bvh", 2},     {"mesh_box_tree", 2},  {"cell_grid", 5},        {"sphere_trees", 5},
+    {"detector", 6},         {"scene", 7},          {"sphere_cache", 7},     {"grid_cache", 7},
+    {"binary_io", 7},        {"mesh_cache", 7},     {"scene_assets", 8},     {"polygon_soup", 1},
+    {"text_scanner", 1},     {"read_off", 1},       {"read_obj", 1},         {"read_ply", 1},
+    {"read_stl", 1},         {"swept_query", 7},    {"swept_scene", 8},      {"haptic_renderer", 9},
+    {"triangle_pieces", 1},
 };
 
 /** Every header and source of the package, by path relative to the root, with the files it includes. */

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <random>
@@ -141,6 +142,31 @@ TEST(MeshBoxTree, StaleTreeIsNotUsed) {
   }
 }
 
+// A tree remembers the fingerprint of the mesh it was built for or checked against: a mesh with that fingerprint is
+// served without the O(triangles) check, any change to a vertex or a triangle changes the fingerprint and brings
+// the check back, and a tree with no fingerprint is always checked.
+TEST(MeshBoxTree, FingerprintStandsForTheCheckOnlyForTheSameMesh) {
+  TriangleMesh mesh = loadMesh(kTorus);
+  mesh.boxTree = buildMeshBoxTree(mesh);
+  ASSERT_EQ(mesh.boxTree->servesFingerprint, meshFingerprint(mesh));
+  EXPECT_EQ(meshBoxTreeOf(mesh), mesh.boxTree);
+  TriangleMesh nudged = mesh;  // one coordinate of one vertex, by one unit in the last place
+  nudged.vertices[7].x() = std::nextafter(nudged.vertices[7].x(), 1e9);
+  EXPECT_NE(meshFingerprint(nudged), meshFingerprint(mesh));
+  TriangleMesh flipped = mesh;  // the same vertices, one triangle turned
+  std::swap(flipped.triangles[3][0], flipped.triangles[3][1]);
+  EXPECT_NE(meshFingerprint(flipped), meshFingerprint(mesh));
+  // The fingerprint is trusted: a wrong tree carrying the mesh's fingerprint is served (so only the builder and
+  // the checked cache read set it); without it, the same wrong tree is checked and replaced.
+  auto wrong = std::make_shared<MeshBoxTree>(*mesh.boxTree);
+  wrong->nodes[0].hi[0] = wrong->nodes[0].lo[0];
+  TriangleMesh carrying = mesh;
+  carrying.boxTree = wrong;
+  EXPECT_EQ(meshBoxTreeOf(carrying), wrong);
+  wrong->servesFingerprint = 0;
+  EXPECT_NE(meshBoxTreeOf(carrying), wrong);
+}
+
 // Read from the cache, a mesh brings its tree; the grid detector and the swept query share it, and answer as a
 // brute force (the deep search and pointers beyond the grid's radius walk it).
 TEST(MeshBoxTree, CachedMeshSharesItsTree) {
@@ -148,6 +174,8 @@ TEST(MeshBoxTree, CachedMeshSharesItsTree) {
   MeshCache cache(dir.str());
   cache.load(kTorus, {});
   const auto mesh = std::make_shared<const TriangleMesh>(cache.load(kTorus, {}));
+  ASSERT_TRUE(mesh->boxTree);
+  EXPECT_EQ(mesh->boxTree->servesFingerprint, meshFingerprint(*mesh)) << "checked at the read, not again";
   ASSERT_TRUE(mesh->boxTree);
   EXPECT_EQ(meshBoxTreeProblem(*mesh->boxTree, *mesh), "");
   auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
@@ -182,20 +210,45 @@ TEST(MeshBoxTree, DamagedTreeInTheCacheFileIsRefused) {
   const std::string path = dir.file("torus.clodmesh");
   writeMeshBinary(mesh, key, path);
   ASSERT_TRUE(readMeshBinary(path, key).boxTree);
-  std::vector<char> bytes = clod_test::readBytes(path);
-  // The file ends with the tree's order (4 bytes per triangle), the name, then the checksum.
-  const std::size_t orderAt = bytes.size() - 8 - mesh.name.size() - 4 * mesh.size();
-  const std::uint32_t duplicate = 0;
-  std::memcpy(bytes.data() + orderAt + 4, &duplicate, 4);
-  std::memcpy(bytes.data() + orderAt, &duplicate, 4);
-  clod_test::fixChecksum(bytes);
-  clod_test::writeBytes(path, bytes);
-  try {
-    readMeshBinary(path, key);
-    ADD_FAILURE() << "read a mesh whose tree lists a triangle twice";
-  } catch (const FormatError& e) {
-    EXPECT_NE(std::string(e.what()).find("box tree"), std::string::npos) << e.what();
-  }
+  const std::vector<char> good = clod_test::readBytes(path);
+  // The file ends with the tree's order (4 bytes per triangle), its slabs (64 bytes per node), the name, then the
+  // checksum.
+  const std::size_t nodes = buildMeshBoxTree(mesh)->nodes.size();
+  const std::size_t slabsAt = good.size() - 8 - mesh.name.size() - 64 * nodes;
+  const std::size_t orderAt = slabsAt - 4 * mesh.size();
+  auto expectRefused = [&](const std::function<void(std::vector<char>&)>& edit, const char* what) {
+    std::vector<char> bytes = good;
+    edit(bytes);
+    clod_test::fixChecksum(bytes);
+    clod_test::writeBytes(path, bytes);
+    try {
+      readMeshBinary(path, key);
+      ADD_FAILURE() << "read a mesh whose tree " << what;
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("box tree"), std::string::npos) << e.what();
+    }
+  };
+  expectRefused(
+      [&](std::vector<char>& b) {
+        const std::uint32_t duplicate = 0;
+        std::memcpy(b.data() + orderAt + 4, &duplicate, 4);
+        std::memcpy(b.data() + orderAt, &duplicate, 4);
+      },
+      "lists a triangle twice");
+  // The last node is a leaf: it has a slab. A normal that is not a unit vector, a NaN thickness.
+  const std::size_t lastSlab = slabsAt + 64 * (nodes - 1);
+  expectRefused(
+      [&](std::vector<char>& b) {
+        const double two = 2.0;
+        std::memcpy(b.data() + lastSlab + 24, &two, 8);
+      },
+      "has a slab whose normal is not a unit vector");
+  expectRefused(
+      [&](std::vector<char>& b) {
+        const double nan = std::nan("");
+        std::memcpy(b.data() + lastSlab + 48, &nan, 8);
+      },
+      "has a slab of NaN thickness");
 }
 
 // The slabs: every vertex below a node within its thick of the plane and its radius of the centre, and the slab's

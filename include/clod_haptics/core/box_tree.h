@@ -2,6 +2,8 @@
 
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <functional>
+#include <string>
 #include <vector>
 
 namespace clod_haptics {
@@ -28,6 +30,21 @@ struct BoxNode {
  */
 std::uint32_t buildBoxTree(const std::vector<Eigen::AlignedBox3d>& boxes, int leafSize, double pad,
                            std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order, unsigned threads = 2);
+
+/** \brief The deepest tree the walks follow: their stacks hold 64 (detector) and 128 (swept query) entries. */
+constexpr int kMaxBoxTreeDepth = 60;
+
+/**
+ * \brief Why nodes and order are not a tree over `items` items that the walks can follow, or "" when they are: a
+ * depth-first layout from the root at 0 (every inner node's children after it and inside the array, at most
+ * kMaxBoxTreeDepth levels), leaves taking consecutive runs of order, every item in exactly one leaf, every box
+ * non-empty and holding its children's, and holds(leaf, item) for each item of each leaf. O(nodes + items). A tree
+ * that passes bounds its items however it was split: what a tree read from a file must show before a walk uses it.
+ * item names an item in the reasons ("triangle", "sphere").
+ */
+std::string boxTreeProblem(const std::vector<BoxNode>& nodes, const std::vector<std::uint32_t>& order,
+                           std::size_t items, const std::function<bool(const BoxNode&, std::uint32_t)>& holds,
+                           const std::string& item = "item");
 
 /** \brief Squared distance from (px, py, pz) to a node's box, zero inside; computed in double. */
 inline double squaredDistanceToNode(const BoxNode& n, double px, double py, double pz) {

@@ -12,6 +12,7 @@
 #include "clod_haptics/core/mesh.h"
 #include "clod_haptics/core/mesh_box_tree.h"
 #include "clod_haptics/core/sphere_set.h"
+#include "clod_haptics/core/sphere_trees.h"
 
 namespace clod_haptics {
 
@@ -19,7 +20,7 @@ namespace clod_haptics {
 enum class FastLevel : std::uint8_t {
   Flat,       ///< the paper: the pointer against every sphere, then every triangle a hit sphere lists
   Hierarchy,  ///< a box tree over the spheres, then a box tree over each sphere's triangles; O(log n)
-  Grid,       ///< the fast level precomputed per grid cell (CellGrid), O(1); one box tree over the mesh beyond its radius
+  Grid,  ///< the fast level precomputed per grid cell (CellGrid), O(1); one box tree over the mesh beyond its radius
 };
 
 /**
@@ -79,13 +80,22 @@ class ClodDetector {
    * \brief Prepares the flat arrays and trees; the mesh and set are kept alive by the pointers.
    * \param gridRadius for FastLevel::Grid, the largest pointer radius the grid serves (larger ones use
    * the hierarchy); 0 picks 1% of the model's diagonal.
-   * \param gridSource for FastLevel::Grid, where the grid comes from instead of a build (a disk cache, see
-   * CellGridCache): called once with the radius (after the 0 default is resolved), it returns the grid that
-   * CellGrid(*mesh, *spheres, radius) would build, or builds it. Empty: the grid is built here.
+   * \param gridSource for FastLevel::Grid, where the grid and the trees over the spheres come from instead of a
+   * build (a disk cache, see CellGridCache): called once with the radius (after the 0 default is resolved), it
+   * returns what buildGridParts(*mesh, *spheres, radius) would build, or builds it. Empty: both are built here.
    * \throws SphereSetMismatch when the set does not fit the mesh (fitProblem): built for another mesh or scale;
    * InvalidParameter when gridSource returns a grid of another radius; whatever gridSource throws.
    */
-  using GridSource = std::function<CellGrid(double radius)>;
+  struct GridParts {
+    CellGrid grid;
+    SphereTrees trees;
+  };
+  using GridSource = std::function<GridParts(double radius)>;
+  /**
+   * \brief What a Grid detector of mesh and spheres builds beyond them for a grid radius (> 0): the grid and the
+   * trees over the spheres (padded by meshBoxTreePad(mesh)). The set must fit the mesh (fitProblem).
+   */
+  static GridParts buildGridParts(const TriangleMesh& mesh, const ClodSphereSet& spheres, double radius);
   /**
    * \brief A grid cell that lists more triangles than this is answered through the tree over the mesh instead of
    * its sorted scan. Such cells come from triangles far smaller than the grid radius (thousands within reach of
@@ -97,6 +107,8 @@ class ClodDetector {
   static constexpr std::uint32_t kTreeAboveEntries = 2048;
   /** \brief The radius of the grid a Grid detector of mesh builds for gridRadius (0: 1% of the diagonal). */
   static double effectiveGridRadius(const TriangleMesh& mesh, double gridRadius);
+  /** \brief The same from the mesh's bounds (TriangleMesh::bounds). */
+  static double effectiveGridRadius(const Eigen::AlignedBox3d& bounds, double gridRadius);
   ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
                FastLevel fastLevel = FastLevel::Grid, double gridRadius = 0.0, const GridSource& gridSource = {});
 
@@ -140,8 +152,6 @@ class ClodDetector {
   const std::shared_ptr<const TriangleMesh>& mesh() const { return mesh_; }
   /** \brief The grid level's box tree over the mesh (shared with the mesh and its swept queries); null otherwise. */
   const std::shared_ptr<const MeshBoxTree>& meshTree() const { return meshTree_; }
-  /** \brief The slabs of meshTree()'s nodes (meshTreeSlabs), empty without it. */
-  const std::vector<NodeSlab>& meshTreeSlabs() const { return meshSlabs_; }
   /** \brief The sphere set. */
   const std::shared_ptr<const ClodSphereSet>& spheres() const { return spheres_; }
   /** \brief The fast-level strategy in use. */
@@ -191,8 +201,8 @@ class ClodDetector {
   // reach is handed to it as well) or std::nullptr_t (a plain query). skip: a triangle already tested for p, passed
   // over (UINT32_MAX: none).
   template <class Fill>
-  void scanCell(const CellGrid::Cell& cell, const Vec3& rel, const Vec3& p, DetectionMode mode, Best& best,
-                Fill* fill, std::uint32_t skip) const;
+  void scanCell(const CellGrid::Cell& cell, const Vec3& rel, const Vec3& p, DetectionMode mode, Best& best, Fill* fill,
+                std::uint32_t skip) const;
   // The answer for p from the stream's neighbourhood (QueryCache::nearTriangle), s = |p - anchor|.
   void preciseNear(const Vec3& p, double s, DetectionMode mode, Best& best, const QueryCache& cache) const;
   // The nearest triangle within best's reach through the tree over the mesh; skip: a triangle already tested for p,
@@ -218,18 +228,9 @@ class ClodDetector {
   // Per triangle, one record of 13 doubles (two cache lines): a ball around it (centroid and padded
   // radius reaching its vertices) for a cheap reject, then its three corners. Empty for the grid level.
   std::vector<double> triangles_;
-  // Hierarchy (and grid): trees over the spheres; hierarchy only: one tree per sphere over its triangles. The ball tree bounds
-  // each sphere's ball (spheres mode, display); the tight tree bounds each sphere by the box of the
-  // triangles it wraps intersected with its ball, the region where a precise contact through it can lie.
-  std::vector<BoxNode> sphereNodes_;
-  std::vector<std::uint32_t> sphereOrder_;
-  std::vector<BoxNode> tightNodes_;
-  std::vector<std::uint32_t> tightOrder_;
-  // Spheres mode (hierarchy and grid): a tree over the spheres' centres with each node's largest radius, searched
-  // best first for the nearest sphere surface, so the search reads a few spheres however many overlap the pointer.
-  std::vector<BoxNode> gapNodes_;
-  std::vector<std::uint32_t> gapOrder_;
-  std::vector<float> gapRadius_;
+  // Hierarchy and grid: the trees over the spheres (ball, tight, gap; SphereTrees). Hierarchy only: one tree per
+  // sphere over its triangles.
+  SphereTrees trees_;
   std::vector<BoxNode> triangleNodes_;
   std::vector<std::uint32_t> triangleOrder_;  // triangle indices in per-sphere leaf order
   std::vector<std::uint32_t> triangleRoot_;   // per sphere: root in triangleNodes_
@@ -239,11 +240,10 @@ class ClodDetector {
   // Grid: one tree over all the triangles, for pointers beyond the grid's radius and the deep search (the mesh's
   // own when it brings one that fits, see meshBoxTreeOf).
   std::shared_ptr<const MeshBoxTree> meshTree_;
-  std::vector<NodeSlab> meshSlabs_;          // per node of meshTree_: what its walks prune by beside the boxes
   const Triangle* triangleIndex_ = nullptr;  // the mesh's arrays (kept alive by mesh_)
   const Vec3* vertices_ = nullptr;
   const Vec3* normals_ = nullptr;
-  Vec3 origin_ = Vec3::Zero();  // the mesh's local origin: p - origin_ in, point + origin_ out
+  Vec3 origin_ = Vec3::Zero();                           // the mesh's local origin: p - origin_ in, point + origin_ out
   double reachFromCentre_ = 0.0, reachBeyondBox_ = 0.0;  // see spheresReachFromBoundsCentre()
 };
 

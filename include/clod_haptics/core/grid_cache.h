@@ -6,6 +6,7 @@
 #include <string>
 
 #include "clod_haptics/core/cell_grid.h"
+#include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/mesh.h"
 #include "clod_haptics/core/sphere_cache.h"
 #include "clod_haptics/core/sphere_set.h"
@@ -15,8 +16,9 @@ namespace clod_haptics {
 /**
  * \brief Version of the binary grid cache format; part of every grid file's name and header. Bump it whenever
  * CellGrid's layout or its build (cell sizing, candidates, slabs) changes: a file answers as the build that wrote it.
+ * 4: the detector's trees over the spheres follow the grid (SphereTrees), and the checksum is cacheChecksum.
  */
-constexpr std::uint32_t kGridCacheFormatVersion = 3;
+constexpr std::uint32_t kGridCacheFormatVersion = 4;
 
 /** \brief What a cached grid was built from: the level (mesh, d, its sphere set) and CellGrid's parameters. */
 struct GridCacheKey {
@@ -35,22 +37,27 @@ struct GridCacheKey {
 std::uint64_t sphereSetHash(const ClodSphereSet& set);
 
 /**
- * \brief Writes a grid in the binary cache format: magic, format version, byte order, the key, the mesh's
- * triangle count, then the grid (CellGrid::writeTo) and a checksum of everything before it.
+ * \brief Writes a Grid detector's parts in the binary cache format: magic, format version, byte order, the key, the
+ * mesh's triangle count, then the grid (CellGrid::writeTo), the trees over the spheres and a checksum of everything
+ * before it.
  * \throws FormatError when the file cannot be written.
  */
-void writeCellGridBinary(const CellGrid& grid, const GridCacheKey& key, std::size_t triangles, const std::string& path);
+void writeCellGridBinary(const ClodDetector::GridParts& parts, const GridCacheKey& key, std::size_t triangles,
+                         const std::string& path);
 
 /**
  * \brief Reads a grid file and checks it against what the caller expects: checksum, magic, format version, byte
- * order, every field of the key (bit for bit), the mesh's triangle count, then CellGrid::readFrom's checks. The
- * file is read with its arrays copied in one piece each (no per-element parsing beyond the checks).
+ * order, every field of the key (bit for bit), the mesh's triangle count, then CellGrid::readFrom's checks and that
+ * the trees serve set over mesh (sphereTreesProblem; set is the level whose hash the key holds). The file is read
+ * with its arrays copied in one piece each (no per-element parsing beyond the checks).
  * \throws FormatError naming the first check that failed.
  */
-CellGrid readCellGridBinary(const std::string& path, const GridCacheKey& key, const TriangleMesh& mesh);
+ClodDetector::GridParts readCellGridBinary(const std::string& path, const GridCacheKey& key, const TriangleMesh& mesh,
+                                           const ClodSphereSet& set);
 
 /**
- * \brief A disk cache of grids (the Grid fast level), one file per (mesh content hash, clustering distance, grid
+ * \brief A disk cache of grids (the Grid fast level) and the detector's trees over the level's spheres (a restart
+ * then builds neither), one file per (mesh content hash, clustering distance, grid
  * radius, CellGrid options, format version), beside the sphere sets in the same directory. The file name
  * "mesh-<hash>-d<bits>-grid-r<bits>-o<options>-v<version>.clodgrid" starts as the sphere set's. Same rules as
  * SphereSetCache: a stale or corrupt file is deleted and rebuilt, files are stored atomically, thread-safe.
@@ -75,13 +82,14 @@ class CellGridCache : public DiskCache {
   std::string pathFor(const GridCacheKey& key) const;
 
   /**
-   * \brief The grid of key from the cache, or from build() when there is no valid file, which is then stored.
-   * build is called at most once and only on a miss. A failure to store is reported in outcome->problem.
+   * \brief The grid and trees of key (for set over mesh) from the cache, or from build() when there is no valid
+   * file, which is then stored. build is called at most once and only on a miss. A failure to store is reported in
+   * outcome->problem.
    * \throws InvalidParameter for a bad distance or radius; whatever build() throws.
    */
-  CellGrid getOrBuild(const TriangleMesh& mesh, const GridCacheKey& key, const std::function<CellGrid()>& build,
-                      CacheOutcome* outcome = nullptr);
-
+  ClodDetector::GridParts getOrBuild(const TriangleMesh& mesh, const ClodSphereSet& set, const GridCacheKey& key,
+                                     const std::function<ClodDetector::GridParts()>& build,
+                                     CacheOutcome* outcome = nullptr);
   /**
    * \brief Whether a file for key exists (getOrBuild would read it; it is checked then, and rebuilt if bad).
    */

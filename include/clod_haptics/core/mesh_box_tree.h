@@ -14,36 +14,6 @@
 namespace clod_haptics {
 
 /**
- * \brief One box tree over all the triangles of a mesh (leaves of 4, boxes padded by meshBoxTreePad), in the
- * mesh's local frame: what the grid level walks beyond its radius and for the deep search, and what the swept
- * query walks for radii its grid does not serve. Built once per mesh and shared (TriangleMesh::boxTree), so a mesh
- * read from the disk cache brings its tree and no detector of it builds one.
- */
-struct MeshBoxTree {
-  std::vector<BoxNode> nodes;        ///< depth first, root at 0 (BoxNode)
-  std::vector<std::uint32_t> order;  ///< every triangle once, in leaf order
-};
-
-/** \brief The padding of the tree's boxes: 1e-12 of the mesh's coordinates' magnitude or diagonal, whichever is larger.
- */
-double meshBoxTreePad(const TriangleMesh& mesh);
-
-/** \brief Builds the tree over the mesh's triangles (empty for a mesh without triangles). */
-std::shared_ptr<const MeshBoxTree> buildMeshBoxTree(const TriangleMesh& mesh);
-
-/**
- * \brief Why tree cannot serve mesh, or "" when it can: a depth-first layout the walks can follow (every inner
- * node's children after it and inside the array, at most 60 levels deep), every triangle in exactly one leaf, and
- * every box holding what lies below it (a leaf's box each vertex of its triangles, padded by meshBoxTreePad; an
- * inner node's box its children's). A tree that passes gives exact answers, however it was split. O(nodes +
- * triangles); a stale tree (the mesh's vertices moved since) fails it.
- */
-std::string meshBoxTreeProblem(const MeshBoxTree& tree, const TriangleMesh& mesh);
-
-/** \brief mesh.boxTree when it serves the mesh (meshBoxTreeProblem), else a tree built for it. */
-std::shared_ptr<const MeshBoxTree> meshBoxTreeOf(const TriangleMesh& mesh);
-
-/**
  * \brief A slab and a ball around the triangles below one node of a MeshBoxTree: every vertex below lies within
  * `thick` of the plane through `centre` with unit `normal` and within `radius` of `centre` (rounded up). A node's
  * box keeps what lies within the pointer radius of its corners; on a finely tessellated surface turned against the
@@ -58,11 +28,63 @@ struct NodeSlab {
   double radius = std::numeric_limits<double>::infinity();
 };
 
+/**
+ * \brief One box tree over all the triangles of a mesh (leaves of 4, boxes padded by meshBoxTreePad), in the
+ * mesh's local frame: what the grid level walks beyond its radius and for the deep search, and what the swept
+ * query walks for radii its grid does not serve. Built once per mesh and shared (TriangleMesh::boxTree), so a mesh
+ * read from the disk cache brings its tree and no detector of it builds one.
+ */
+struct MeshBoxTree {
+  std::vector<BoxNode> nodes;        ///< depth first, root at 0 (BoxNode)
+  std::vector<std::uint32_t> order;  ///< every triangle once, in leaf order
+  /// Per node, what the walks prune by beside the boxes (meshTreeSlabs): filled by buildMeshBoxTree and meshBoxTreeOf,
+  /// and stored in the mesh cache with the tree.
+  std::vector<NodeSlab> slabs;
+  /// meshFingerprint of the mesh the tree and its slabs were built for or checked against (meshBoxTreeProblem), 0 if
+  /// none: a mesh with that fingerprint is served without the check (the mesh cache reads and checks the tree, then
+  /// every detector and swept query of the mesh asks meshBoxTreeOf again).
+  std::uint64_t servesFingerprint = 0;
+};
+
+/** \brief A checksum of the mesh's vertices and triangles (cacheChecksum): what a box tree over it depends on. */
+std::uint64_t meshFingerprint(const TriangleMesh& mesh);
+
+/** \brief The padding of the tree's boxes: 1e-12 of the mesh's coordinates' magnitude or diagonal, whichever is larger.
+ */
+double meshBoxTreePad(const TriangleMesh& mesh);
+/** \brief The same from the mesh's bounds (TriangleMesh::bounds, a pass over every vertex) when the caller has them. */
+double meshBoxTreePad(const Eigen::AlignedBox3d& bounds);
+
+/** \brief Builds the tree over the mesh's triangles (empty for a mesh without triangles). */
+std::shared_ptr<const MeshBoxTree> buildMeshBoxTree(const TriangleMesh& mesh);
+
+/**
+ * \brief Why tree cannot serve mesh, or "" when it can: a depth-first layout the walks can follow (every inner
+ * node's children after it and inside the array, at most 60 levels deep), every triangle in exactly one leaf, and
+ * every box holding what lies below it (a leaf's box each vertex of its triangles, padded by meshBoxTreePad; an
+ * inner node's box its children's). A tree that passes gives exact answers, however it was split. O(nodes +
+ * triangles); a stale tree (the mesh's vertices moved since) fails it.
+ */
+std::string meshBoxTreeProblem(const MeshBoxTree& tree, const TriangleMesh& mesh);
+/** \brief The same with the mesh's pad given (meshBoxTreePad(mesh)). */
+std::string meshBoxTreeProblem(const MeshBoxTree& tree, const TriangleMesh& mesh, double pad);
+
+/**
+ * \brief mesh.boxTree when it serves the mesh with its slabs (its servesFingerprint is the mesh's); a copy of it with
+ * the slabs computed again when meshBoxTreeProblem finds nothing (the vertices may have moved within the boxes); else
+ * a tree built for it. The tree returned always has its slabs.
+ */
+std::shared_ptr<const MeshBoxTree> meshBoxTreeOf(const TriangleMesh& mesh);
+/** \brief The same with the mesh's pad given (meshBoxTreePad(mesh)). */
+std::shared_ptr<const MeshBoxTree> meshBoxTreeOf(const TriangleMesh& mesh, double pad);
+
 /** \brief Below this many triangles a node gets a slab (above, a curved surface makes the slab as thick as the box). */
 constexpr std::uint32_t kSlabTriangles = 64;
 
 /** \brief One slab per node of tree (which serves mesh): the nodes with at most kSlabTriangles below, else none. */
 std::vector<NodeSlab> meshTreeSlabs(const MeshBoxTree& tree, const TriangleMesh& mesh);
+/** \brief The same with the mesh's pad given (meshBoxTreePad(mesh)). */
+std::vector<NodeSlab> meshTreeSlabs(const MeshBoxTree& tree, const TriangleMesh& mesh, double pad);
 
 /**
  * \brief A lower bound of the squared distance from p to every point below the slab's node: the distance across the

@@ -14,9 +14,10 @@ namespace clod_haptics {
  * \brief Version of the binary mesh cache format; part of every key and file header. 2: vertices read in
  * double by the strict readers; 3: vertices relative to the mesh's local origin, which is stored; 4: the
  * adjacency and the vertex corners are stored (rebuilding them was 85% of a read); 5: the box tree over the
- * triangles too (MeshBoxTree), which the grid detectors and swept queries of the mesh then share.
+ * triangles too (MeshBoxTree), which the grid detectors and swept queries of the mesh then share; 6: the checksum
+ * is cacheChecksum (four lanes) instead of fnv1a64.
  */
-constexpr std::uint32_t kMeshCacheFormatVersion = 5;
+constexpr std::uint32_t kMeshCacheFormatVersion = 6;
 
 /**
  * \brief The key of a loaded mesh: a hash of the source file's bytes and of the load options (scale,

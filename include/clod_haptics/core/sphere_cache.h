@@ -7,6 +7,7 @@
 #include <memory>
 #include <string>
 
+#include "clod_haptics/core/checksum.h"
 #include "clod_haptics/core/mesh.h"
 #include "clod_haptics/core/sphere_set.h"
 
@@ -16,9 +17,9 @@ namespace clod_haptics {
  * \brief Version of the binary sphere-set cache format; part of every cache key and file header. 2: tight sets split
  * long triangles over several spheres (a level cached by version 1 still fits its mesh, but is not the level this
  * version builds, so it is not read). 3: tight sets take another principal axis only where it cuts clearly more
- * compact halves (same reason).
+ * compact halves (same reason). 4: the checksum is cacheChecksum (four lanes) instead of fnv1a64.
  */
-constexpr std::uint32_t kSphereCacheFormatVersion = 3;
+constexpr std::uint32_t kSphereCacheFormatVersion = 4;
 
 /**
  * \brief A 64-bit content hash of a loaded mesh: FNV-1a over the vertex coordinates (after scaling)
@@ -27,9 +28,6 @@ constexpr std::uint32_t kSphereCacheFormatVersion = 3;
  * their file name. The cache check of coverage catches a collision all the same.
  */
 std::uint64_t meshContentHash(const TriangleMesh& mesh);
-
-/** \brief FNV-1a 64 over raw bytes, continuing from seed (the checksum of the cache files). */
-std::uint64_t fnv1a64(const void* data, std::size_t bytes, std::uint64_t seed = 0xcbf29ce484222325ull);
 
 /**
  * \brief Writes a sphere set in the binary cache format: a header (magic, format version, mesh hash,
@@ -74,8 +72,8 @@ struct CacheOutcome {
 };
 
 /**
- * \brief What the disk caches (SphereSetCache, CellGridCache, MeshCache) share: a directory of files named by key, a file
- * that fails its checks deleted and its content built again, files stored atomically, and counters.
+ * \brief What the disk caches (SphereSetCache, CellGridCache, MeshCache) share: a directory of files named by key, a
+ * file that fails its checks deleted and its content built again, files stored atomically, and counters.
  */
 class DiskCache {
  public:
@@ -106,9 +104,10 @@ class DiskCache {
 
 /**
  * \brief A disk cache of CLOD levels, one file per (mesh content hash, clustering distance, format
- * version); the grids of the Grid fast level go in the same directory (CellGridCache, grid_cache.h). A restart finds the files and does not rebuild; a stale or corrupt file is detected,
- * deleted and rebuilt, never trusted. Files are written to a temporary name and renamed, so a crash
- * or a concurrent writer never leaves a half-written file under the final name.
+ * version); the grids of the Grid fast level go in the same directory (CellGridCache, grid_cache.h). A restart finds
+ * the files and does not rebuild; a stale or corrupt file is detected, deleted and rebuilt, never trusted. Files are
+ * written to a temporary name and renamed, so a crash or a concurrent writer never leaves a half-written file under the
+ * final name.
  *
  * Thread-safe: getOrBuild may run concurrently (two threads asking for the same level may both
  * build it; the last rename wins and both results are valid).

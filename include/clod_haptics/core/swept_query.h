@@ -134,10 +134,9 @@ class SweptSphereQuery {
 
   std::shared_ptr<const TriangleMesh> mesh_;
   std::shared_ptr<const ClodDetector> detector_;
-  const CellGrid* grid_ = nullptr;           // the detector's grid, null when it has none
+  const CellGrid* grid_ = nullptr;  // the detector's grid, null when it has none
   std::vector<double> records_;  // per triangle: ball (centre, radius), unit normal, thickness, corners (local frame)
-  std::shared_ptr<const MeshBoxTree> tree_;  // box tree over the triangles (local frame), the mesh's when it fits
-  std::vector<NodeSlab> ownSlabs_;           // the tree's slabs when the detector does not bring them
+  std::shared_ptr<const MeshBoxTree> tree_;  // box tree over the triangles and its slabs (local frame), shared
 };
 
 }  // namespace clod_haptics
