@@ -172,7 +172,7 @@ FUZZ_SECONDS ?= 60
 FUZZ_CXX := clang++-14
 FUZZ_CXXFLAGS := -std=c++17 -g -O1 -fno-omit-frame-pointer -fno-sanitize-recover=undefined \
   -I$(ROOT)/include -isystem /usr/include/eigen3
-FUZZ_TARGETS := fuzz_mesh_load fuzz_query
+FUZZ_TARGETS := fuzz_mesh_load fuzz_query fuzz_cache_read
 # Every core source, the subfolders' (simd/, mesh_readers/) included.
 FUZZ_CORE_OBJS := $(patsubst $(ROOT)/src/core/%.cpp,$(FUZZ_DIR)/obj/%.o,$(wildcard $(ROOT)/src/core/*.cpp $(ROOT)/src/core/*/*.cpp))
 SAN_WS := $(BUILD)/ws-sanitize
@@ -201,11 +201,13 @@ $(FUZZ_DIR)/%: $(ROOT)/fuzz/%.cpp $(ROOT)/fuzz/fuzz_common.h $(FUZZ_CORE_OBJS)
 fuzz-build: deps-fuzz
 	@$(MAKE) --no-print-directory $(addprefix $(FUZZ_DIR)/,$(FUZZ_TARGETS))
 
-# Seeds: the test fixtures behind a selector byte (0 .off, 1 .obj, 2 .stl, 3 .ply; bit 2 normalises),
-# plus fuzz/regressions/<target>/ (inputs that once failed; each also has a gtest).
+# Seeds: the test fixtures behind a selector byte (0 .off, 1 .obj, 2 .stl, 3 .ply; bit 2 normalises); for
+# fuzz_cache_read one byte per cache file (0 mesh, 1 sphere set, 2 grid: the file as written, no edits); plus
+# fuzz/regressions/<target>/ (inputs that once failed; each also has a gtest).
 fuzz: fuzz-build
-	@mkdir -p $(FUZZ_DIR)/artifacts $(FUZZ_DIR)/corpus/fuzz_query $(FUZZ_DIR)/corpus/fuzz_mesh_load \
-	  $(ROOT)/fuzz/regressions/fuzz_query $(ROOT)/fuzz/regressions/fuzz_mesh_load
+	@mkdir -p $(FUZZ_DIR)/artifacts $(addprefix $(FUZZ_DIR)/corpus/,$(FUZZ_TARGETS)) \
+	  $(addprefix $(ROOT)/fuzz/regressions/,$(FUZZ_TARGETS))
+	@for k in 0 1 2; do printf "\\x0$$k" > $(FUZZ_DIR)/corpus/fuzz_cache_read/seed_file_$$k; done
 	@s=$(FUZZ_DIR)/corpus/fuzz_mesh_load; d=$(ROOT)/test/data; \
 	  for f in cube.off:04 cube.obj:05 cube_quads.obj:01 cube_ascii.stl:06 cube_binary.stl:02 cube_ascii.ply:07 \
 	           cube_binary.ply:03 cube_with_zero_area.obj:15 nonconvex_polygons.obj:01 cube.dae:04; do \
@@ -214,6 +216,7 @@ fuzz: fuzz-build
 	@status=0; for t in $(FUZZ_TARGETS); do \
 	  echo "== $$t for $(FUZZ_SECONDS) s (log: $(FUZZ_DIR)/$$t.log)"; \
 	  (cd $(FUZZ_DIR) && LSAN_OPTIONS=suppressions=$(ROOT)/fuzz/lsan.supp ./$$t corpus/$$t $(ROOT)/fuzz/regressions/$$t -max_total_time=$(FUZZ_SECONDS) -timeout=30 -rss_limit_mb=4096 \
+	    $$([ $$t = fuzz_cache_read ] && echo -max_len=121 -len_control=0) \
 	    -artifact_prefix=$(FUZZ_DIR)/artifacts/$$t- -print_final_stats=1 > $$t.log 2>&1); rc=$$?; \
 	  grep -E '^(stat::number_of_executed_units|stat::peak_rss_mb)|^#[0-9]+ +DONE' $(FUZZ_DIR)/$$t.log | tr '\n' ' '; echo; \
 	  if [ $$rc -ne 0 ]; then status=1; echo "$$t FAILED (exit $$rc):"; grep -E 'ERROR|invariant|runtime error|SUMMARY|Test unit written' $(FUZZ_DIR)/$$t.log | head -10; fi; \

@@ -25,8 +25,10 @@ void checkMesh(const ByteReader& r, const TriangleMesh& mesh) {
   for (const Triangle& t : mesh.triangles)
     for (std::uint32_t v : t)
       if (v >= mesh.vertices.size()) r.fail("a vertex index is out of range");
+  // faceNormal's: unit, or zero for a triangle of no area. Placement and the inside test take them as unit vectors.
   for (const Vec3& n : mesh.normals)
-    if (!n.allFinite()) r.fail("a normal is not finite");
+    if (!n.allFinite() || !(n.isZero(0.0) || std::abs(n.squaredNorm() - 1.0) < 1e-9))
+      r.fail("a normal is neither a unit vector nor zero");
   if (!std::isfinite(mesh.scale) || !mesh.offset.allFinite() || !mesh.origin.allFinite())
     r.fail("scale, offset or origin not finite");
   // The adjacency as computeAdjacency leaves it: whatever a query indexes with it stays in range.

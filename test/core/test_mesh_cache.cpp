@@ -39,8 +39,8 @@ TEST(MeshCacheAdjacency, ReadBackEqualsTheLoadedMesh) {
   EXPECT_FALSE(read.neighbours.empty());
 }
 
-// Each adjacency array written out of range (or not finite, or not ascending) is refused on reading with a
-// FormatError that names it; the unedited mesh reads back.
+// Each adjacency array written out of range (or not finite, or not ascending), and a normal that is neither a unit
+// vector nor zero, is refused on reading with a FormatError that names it; the unedited mesh reads back.
 TEST(MeshCacheAdjacency, StoredAdjacencyOutOfRangeIsRefused) {
   const std::string source = CLOD_PACKAGE_DATA_DIR "/meshes/torus.obj";
   const TriangleMesh loaded = loadMesh(source);
@@ -61,6 +61,9 @@ TEST(MeshCacheAdjacency, StoredAdjacencyOutOfRangeIsRefused) {
       {"ascending", [](TriangleMesh& m, std::int32_t) { std::swap(m.cornerOffsets[3], m.cornerOffsets[4]); }},
       {"span", [](TriangleMesh& m, std::int32_t) { m.cornerOffsets.back() -= 1; }},
       {"angle", [](TriangleMesh& m, std::int32_t) { m.cornerAngles[2] = std::numeric_limits<float>::quiet_NaN(); }},
+      // Found by fuzz_cache_read: a huge normal passed (finite) and overflowed an int in the placement's steps.
+      {"normal", [](TriangleMesh& m, std::int32_t) { m.normals[4] *= 1e69; }},
+      {"normal", [](TriangleMesh& m, std::int32_t) { m.normals[9] *= 0.5; }},
   };
   for (const Edit& e : edits) {
     TriangleMesh edited = loaded;
