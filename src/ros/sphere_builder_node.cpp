@@ -7,7 +7,9 @@
 #include "clod_haptics/SphereSet.h"
 #include "clod_haptics/core/clustering.h"
 #include "clod_haptics/core/errors.h"
+#include "clod_haptics/core/mesh_cache.h"
 #include "clod_haptics/core/mesh_loader.h"
+#include "clod_haptics/core/sphere_cache.h"
 #include "clod_haptics/ros/conversions.h"
 #include "clod_haptics/ros/mesh_resource.h"
 
@@ -19,15 +21,24 @@ SphereBuilderNode::SphereBuilderNode(ros::NodeHandle nh, ros::NodeHandle pnh) : 
   MeshLoadOptions options;
   options.scale = scale_;
   options.normalize = normalize_;
+  clusteringStrategy_ = requireClustering(clustering_, pnh_.resolveName("clustering"));
   const auto start = std::chrono::steady_clock::now();
-  auto mesh = std::make_shared<const TriangleMesh>(loadMesh(path, options));
-  builder_ = std::make_unique<ClodBuilder>(mesh, std::make_shared<PaperPlacement>(),
-                                          requireClustering(clustering_, pnh_.resolveName("clustering")));
+  CacheOutcome meshOutcome;
+  if (useCache_) {
+    // The detector's caches (same directory and layout): a restart reads the mesh and its levels instead of
+    // parsing and placing, and leaves the CPU to the detector's own restart.
+    const std::string base = cacheDir_.empty() ? defaultSphereCacheDirectory() : cacheDir_;
+    mesh_ = std::make_shared<const TriangleMesh>(MeshCache(base).load(path, options, &meshOutcome));
+    setCache_ = std::make_shared<SphereSetCache>(clustering_ == "single-link" ? base : base + "/" + clustering_);
+    meshHash_ = meshContentHash(*mesh_);
+  } else {
+    mesh_ = std::make_shared<const TriangleMesh>(loadMesh(path, options));
+  }
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  ROS_INFO("sphere_builder: loaded '%s' (%zu triangles, %s) and placed %zu spheres in %.1f ms; %s clustering",
-           path.c_str(), mesh->size(),
-           normalize_ ? "normalised to the unit cube" : ("scale " + std::to_string(scale_)).c_str(),
-           builder_->centres(), ms, clustering_.c_str());
+  ROS_INFO("sphere_builder: loaded '%s' (%zu triangles, %s) in %.1f ms%s; %s clustering", path.c_str(), mesh_->size(),
+           normalize_ ? "normalised to the unit cube" : ("scale " + std::to_string(scale_)).c_str(), ms,
+           !useCache_ ? "" : (meshOutcome.source == CacheSource::Hit ? " from the mesh cache" : ", cached"),
+           clustering_.c_str());
 
   auto set = level(defaultDistance_);
   SphereSet msg;
@@ -53,6 +64,8 @@ void SphereBuilderNode::readParameters() {
   pnh_.param("default_distance", defaultDistance_, 0.003);
   pnh_.param("cache_size", cacheSize_, 32);
   pnh_.param<std::string>("clustering", clustering_, "single-link");
+  pnh_.param("use_cache", useCache_, true);
+  pnh_.param<std::string>("cache_dir", cacheDir_, "");
   if (!std::isfinite(scale_) || scale_ <= 0.0) throw InvalidParameter("~scale must be finite and positive");
   requireNonNegative(defaultDistance_, "~default_distance");
 }
@@ -80,7 +93,14 @@ std::shared_ptr<const ClodSphereSet> SphereBuilderNode::level(double d, bool* bu
   if (mine) {
     // The caller that inserted the entry builds (outside the lock); the others wait on its future.
     try {
-      promise.set_value(std::make_shared<const ClodSphereSet>(builder_->build(d)));
+      if (setCache_) {
+        CacheOutcome outcome;
+        promise.set_value(setCache_->getOrBuild(
+            *mesh_, meshHash_, d, [&] { return builder().build(d); }, &outcome));
+        if (!outcome.problem.empty()) ROS_WARN("sphere_builder: d = %g: %s", d, outcome.problem.c_str());
+      } else {
+        promise.set_value(std::make_shared<const ClodSphereSet>(builder().build(d)));
+      }
     } catch (...) {
       promise.set_exception(std::current_exception());
       std::lock_guard<std::mutex> lock(cacheMutex_);
@@ -88,6 +108,17 @@ std::shared_ptr<const ClodSphereSet> SphereBuilderNode::level(double d, bool* bu
     }
   }
   return future.get();
+}
+
+ClodBuilder& SphereBuilderNode::builder() {
+  // The placement (ray casts over the mesh) runs once, on the first level not found in the disk cache.
+  std::call_once(builderOnce_, [this] {
+    const auto start = std::chrono::steady_clock::now();
+    builder_ = std::make_unique<ClodBuilder>(mesh_, std::make_shared<PaperPlacement>(), clusteringStrategy_);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    ROS_INFO("sphere_builder: placed %zu spheres in %.1f ms", builder_->centres(), ms);
+  });
+  return *builder_;
 }
 
 std::size_t SphereBuilderNode::buildCount() const {

@@ -1,11 +1,13 @@
 // rostest of sphere_builder: service round trip against the core's ClodBuilder, bad requests, one
-// build for concurrent requests of a level, the latched default level.
+// build for concurrent requests of a level, the latched default level, a restart through the disk caches.
 // Parameters (~): mesh, scale, normalize (same as the node's), distances (list), default_distance.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <string>
 #include <thread>
@@ -18,6 +20,7 @@
 #include "clod_haptics/core/sphere_set.h"
 #include "clod_haptics/ros/conversions.h"
 #include "clod_haptics/ros/mesh_resource.h"
+#include "clod_haptics/ros/sphere_builder_node.h"
 #include "test_timing.h"
 
 namespace clod_haptics {
@@ -43,7 +46,8 @@ const ClodBuilder& referenceBuilder() {
   static const ClodBuilder builder = [] {
     std::string clustering;
     ros::NodeHandle("~").param<std::string>("clustering", clustering, "single-link");
-    return ClodBuilder(referenceMesh(), std::make_shared<PaperPlacement>(), requireClustering(clustering, "~clustering"));
+    return ClodBuilder(referenceMesh(), std::make_shared<PaperPlacement>(),
+                       requireClustering(clustering, "~clustering"));
   }();
   return builder;
 }
@@ -166,6 +170,43 @@ TEST(SphereBuilder, DefaultLevelIsPublishedLatched) {
   ASSERT_TRUE(latched) << "nothing latched on /sphere_builder/sphere_set";
   EXPECT_DOUBLE_EQ(latched->distance, d);
   EXPECT_EQ(latched->spheres.size(), referenceBuilder().build(d).size());
+}
+
+// With ~use_cache, a sphere_builder started again over the same mesh and cache directory reads the mesh and its
+// default level from the disk caches and runs no placement; its level is the core's, sphere for sphere. (Two
+// in-process nodes in a namespace of their own, one after the other: each advertises its service.)
+TEST(SphereBuilder, RestartReadsTheMeshAndTheDefaultLevelFromTheDiskCache) {
+  ros::NodeHandle pnh("~");
+  std::string uri, clustering;
+  pnh.getParam("mesh", uri);
+  pnh.param<std::string>("clustering", clustering, "single-link");
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("clod_sphere_builder_restart_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  ros::NodeHandle probe("~restart_probe");
+  probe.setParam("mesh", uri);
+  probe.setParam("scale", pnh.param("scale", 1.0));
+  probe.setParam("normalize", pnh.param("normalize", false));
+  probe.setParam("clustering", clustering);
+  probe.setParam("default_distance", 0.004);
+  probe.setParam("use_cache", true);
+  probe.setParam("cache_dir", dir.string());
+  {
+    SphereBuilderNode first(ros::NodeHandle(), probe);
+    EXPECT_TRUE(first.placementRan()) << "an empty cache: the first start places";
+  }
+  SphereBuilderNode second(ros::NodeHandle(), probe);
+  EXPECT_FALSE(second.placementRan()) << "the restart read the mesh and the default level from " << dir;
+  const auto set = second.level(0.004);
+  const ClodSphereSet want = referenceBuilder().build(0.004);
+  ASSERT_EQ(set->size(), want.size());
+  EXPECT_EQ(set->offsets, want.offsets);
+  EXPECT_EQ(set->triangles, want.triangles);
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    EXPECT_EQ(set->centres[i], want.centres[i]) << "sphere " << i;
+    EXPECT_EQ(set->radii[i], want.radii[i]) << "sphere " << i;
+  }
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
