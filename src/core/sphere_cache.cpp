@@ -128,6 +128,11 @@ ClodSphereSet readSphereSetBinary(const std::string& path, std::uint64_t meshHas
   return set;
 }
 
+std::string sphereCacheDirectoryFor(const std::string& directory, const std::string& clustering) {
+  const std::string base = directory.empty() ? defaultSphereCacheDirectory() : directory;
+  return clustering == "single-link" ? base : base + "/" + clustering;
+}
+
 std::string defaultSphereCacheDirectory() {
   if (const char* dir = std::getenv("CLOD_CACHE_DIR"); dir != nullptr && *dir != '\0') return dir;
   if (const char* ros = std::getenv("ROS_HOME"); ros != nullptr && *ros != '\0') {

@@ -143,9 +143,7 @@ void HapticDetector::loadObjects() {
   const DetectorParameters& p = params_;
   std::shared_ptr<SphereSetCache> cache;
   if (p.useCache) {
-    // A cache holds the levels of one clustering strategy: the others get a directory of their own.
-    const std::string base = p.cacheDir.empty() ? defaultSphereCacheDirectory() : p.cacheDir;
-    cache = std::make_shared<SphereSetCache>(p.clustering == "single-link" ? base : base + "/" + p.clustering);
+    cache = std::make_shared<SphereSetCache>(sphereCacheDirectoryFor(p.cacheDir, p.clustering));
   }
   // Grids serve the pointer radius (and follow it when it is reconfigured) unless ~grid_radius says otherwise.
   double gridRadius = p.gridRadius;

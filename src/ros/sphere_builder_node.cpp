@@ -27,9 +27,8 @@ SphereBuilderNode::SphereBuilderNode(ros::NodeHandle nh, ros::NodeHandle pnh) : 
   if (useCache_) {
     // The detector's caches (same directory and layout): a restart reads the mesh and its levels instead of
     // parsing and placing, and leaves the CPU to the detector's own restart.
-    const std::string base = cacheDir_.empty() ? defaultSphereCacheDirectory() : cacheDir_;
-    mesh_ = std::make_shared<const TriangleMesh>(MeshCache(base).load(path, options, &meshOutcome));
-    setCache_ = std::make_shared<SphereSetCache>(clustering_ == "single-link" ? base : base + "/" + clustering_);
+    mesh_ = std::make_shared<const TriangleMesh>(MeshCache(cacheDir_).load(path, options, &meshOutcome));
+    setCache_ = std::make_shared<SphereSetCache>(sphereCacheDirectoryFor(cacheDir_, clustering_));
     meshHash_ = meshContentHash(*mesh_);
   } else {
     mesh_ = std::make_shared<const TriangleMesh>(loadMesh(path, options));

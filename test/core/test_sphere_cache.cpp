@@ -381,3 +381,19 @@ TEST(MeshCache, CorruptFileIsRebuiltAndMissingFileThrows) {
 }
 
 }  // namespace
+
+namespace {
+
+// The levels of each clustering strategy go to a directory of their own (file names do not name the strategy):
+// single-link's is the cache directory itself, the others' a subdirectory; an empty directory is the default one.
+TEST(SphereCacheDirectory, EachStrategyHasItsOwnDirectory) {
+  using clod_haptics::defaultSphereCacheDirectory;
+  using clod_haptics::sphereCacheDirectoryFor;
+  EXPECT_EQ(sphereCacheDirectoryFor("/tmp/c", "single-link"), "/tmp/c");
+  EXPECT_EQ(sphereCacheDirectoryFor("/tmp/c", "tight"), "/tmp/c/tight");
+  EXPECT_EQ(sphereCacheDirectoryFor("/tmp/c", "cube"), "/tmp/c/cube");
+  EXPECT_EQ(sphereCacheDirectoryFor("", "single-link"), defaultSphereCacheDirectory());
+  EXPECT_EQ(sphereCacheDirectoryFor("", "tight"), defaultSphereCacheDirectory() + "/tight");
+}
+
+}  // namespace

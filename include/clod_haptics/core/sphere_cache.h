@@ -53,6 +53,13 @@ ClodSphereSet readSphereSetBinary(const std::string& path, std::uint64_t meshHas
  */
 std::string defaultSphereCacheDirectory();
 
+/**
+ * \brief Where the levels of a clustering strategy are kept under a cache directory (empty: the default one): the
+ * directory itself for single-link (the paper's), a subdirectory named after any other strategy, since the file
+ * names do not say which strategy built a level. The detector and the sphere_builder share it.
+ */
+std::string sphereCacheDirectoryFor(const std::string& directory, const std::string& clustering);
+
 /** \brief Where a level came from. */
 enum class CacheSource : std::uint8_t {
   Hit,      ///< read from a valid cache file
