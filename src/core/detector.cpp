@@ -290,6 +290,12 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
         GridParts parts = gridSource(radius);
         grid_ = std::move(parts.grid);
         trees_ = std::move(parts.trees);
+        // The walks index the set with what the trees order: trees of another level would read past its arrays.
+        const std::size_t n = s.size();
+        if (trees_.ballOrder.size() != n || trees_.tightOrder.size() != n || trees_.gapOrder.size() != n ||
+            trees_.gapRadius.size() != trees_.gapNodes.size())
+          throw InvalidParameter("ClodDetector: the grid source gave trees over " +
+                                 std::to_string(trees_.ballOrder.size()) + " spheres, expected " + std::to_string(n));
       } else {
         grid_ = CellGrid(m, s, radius);
       }

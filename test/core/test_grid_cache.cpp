@@ -170,6 +170,20 @@ TEST(GridCache, DetectorRefusesAGridOfAnotherRadius) {
                InvalidParameter);
 }
 
+// Trees over another level's spheres from a grid source are refused, typed, before any walk reads them.
+TEST(GridCache, DetectorRefusesTreesOfAnotherLevel) {
+  const Level l = makeLevel(torus(), 0.01, 0.01);
+  const Level other = makeLevel(torus(), 0.005, 0.01);
+  ASSERT_NE(l.set->size(), other.set->size());
+  EXPECT_THROW(ClodDetector(l.mesh, l.set, FastLevel::Grid, l.key.radius,
+                            [&](double radius) {
+                              ClodDetector::GridParts parts = partsOf(l, l.key, radius);
+                              parts.trees = partsOf(other, other.key, radius).trees;
+                              return parts;
+                            }),
+               InvalidParameter);
+}
+
 // ---- SceneAssets: a restart reads the grid ----
 
 TEST(GridCache, SceneAssetsRestartReadsTheGridFromTheCache) {

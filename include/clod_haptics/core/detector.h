@@ -84,7 +84,8 @@ class ClodDetector {
    * build (a disk cache, see CellGridCache): called once with the radius (after the 0 default is resolved), it
    * returns what buildGridParts(*mesh, *spheres, radius) would build, or builds it. Empty: both are built here.
    * \throws SphereSetMismatch when the set does not fit the mesh (fitProblem): built for another mesh or scale;
-   * InvalidParameter when gridSource returns a grid of another radius; whatever gridSource throws.
+   * InvalidParameter when gridSource returns a grid of another radius or trees over another number of spheres
+   * (a disk cache checks the trees themselves: sphereTreesProblem); whatever gridSource throws.
    */
   struct GridParts {
     CellGrid grid;
