@@ -16,6 +16,7 @@
 #include "float_rounding.h"
 #include "simd/closest_point_avx2.h"
 #include "simd/dispatch.h"
+#include "vector_bytes.h"
 
 namespace clod_haptics {
 
@@ -322,14 +323,8 @@ double ClodDetector::effectiveGridRadius(const Eigen::AlignedBox3d& bounds, doub
   return gridRadius > 0.0 && std::isfinite(gridRadius) ? gridRadius : 0.01 * bounds.diagonal().norm();
 }
 
-namespace {
-template <class T>
-std::size_t bytesOf(const std::vector<T>& v) {
-  return v.capacity() * sizeof(T);
-}
-}  // namespace
-
 std::size_t ClodDetector::bytes() const noexcept {
+  using detail::bytesOf;
   return sizeof(*this) + grid_.bytes() + bytesOf(sphereData_) + bytesOf(triangles_) + trees_.bytes() +
          bytesOf(triangleNodes_) + bytesOf(triangleOrder_) + bytesOf(triangleRoot_) + bytesOf(sphereOfTriangle_) +
          (meshTree_ ? bytesOf(meshTree_->nodes) + bytesOf(meshTree_->order) + bytesOf(meshTree_->slabs) : 0);

@@ -51,11 +51,8 @@ std::string meshBoxTreeProblem(const MeshBoxTree& tree, const TriangleMesh& mesh
   return boxTreeProblem(
       tree.nodes, tree.order, n,
       [&](const BoxNode& node, std::uint32_t t) {
-        for (int v = 0; v < 3; ++v) {
-          const Vec3& p = mesh.vertex(t, v);
-          for (int k = 0; k < 3; ++k)
-            if (!(node.lo[k] <= p[k] - pad && node.hi[k] >= p[k] + pad)) return false;
-        }
+        for (int v = 0; v < 3; ++v)
+          if (!nodeHoldsPadded(node, Eigen::AlignedBox3d(mesh.vertex(t, v), mesh.vertex(t, v)), pad)) return false;
         return true;
       },
       "triangle");

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "float_rounding.h"
+#include "vector_bytes.h"
 
 namespace clod_haptics {
 namespace {
@@ -55,21 +56,10 @@ std::vector<float> gapRadii(const std::vector<BoxNode>& nodes, const std::vector
   return maxRadius;
 }
 
-/** Whether a node's box holds box padded by pad (compared in double, as the build rounds outward). */
-bool holdsPadded(const BoxNode& node, const Eigen::AlignedBox3d& box, double pad) {
-  for (int k = 0; k < 3; ++k)
-    if (!(node.lo[k] <= box.min()[k] - pad && node.hi[k] >= box.max()[k] + pad)) return false;
-  return true;
-}
-
-template <class T>
-std::size_t bytesOf(const std::vector<T>& v) {
-  return v.capacity() * sizeof(T);
-}
-
 }  // namespace
 
 std::size_t SphereTrees::bytes() const {
+  using detail::bytesOf;
   return bytesOf(ballNodes) + bytesOf(ballOrder) + bytesOf(tightNodes) + bytesOf(tightOrder) + bytesOf(gapNodes) +
          bytesOf(gapOrder) + bytesOf(gapRadius);
 }
@@ -90,18 +80,18 @@ std::string sphereTreesProblem(const SphereTrees& trees, const TriangleMesh& mes
   const std::vector<Eigen::AlignedBox3d> balls = ballBoxes(set);
   std::string problem = boxTreeProblem(
       trees.ballNodes, trees.ballOrder, n,
-      [&](const BoxNode& node, std::uint32_t i) { return holdsPadded(node, balls[i], pad); }, "sphere");
+      [&](const BoxNode& node, std::uint32_t i) { return nodeHoldsPadded(node, balls[i], pad); }, "sphere");
   if (!problem.empty()) return "ball tree: " + problem;
   const std::vector<Eigen::AlignedBox3d> tight = tightBoxes(mesh, set, balls);
   problem = boxTreeProblem(
       trees.tightNodes, trees.tightOrder, n,
-      [&](const BoxNode& node, std::uint32_t i) { return tight[i].isEmpty() || holdsPadded(node, tight[i], pad); },
+      [&](const BoxNode& node, std::uint32_t i) { return tight[i].isEmpty() || nodeHoldsPadded(node, tight[i], pad); },
       "sphere");
   if (!problem.empty()) return "tight tree: " + problem;
   problem = boxTreeProblem(
       trees.gapNodes, trees.gapOrder, n,
       [&](const BoxNode& node, std::uint32_t i) {
-        return holdsPadded(node, Eigen::AlignedBox3d(set.centres[i], set.centres[i]), pad);
+        return nodeHoldsPadded(node, Eigen::AlignedBox3d(set.centres[i], set.centres[i]), pad);
       },
       "sphere");
   if (!problem.empty()) return "gap tree: " + problem;

@@ -24,7 +24,7 @@ const fs::path kRoot = fs::path(CLOD_PACKAGE_DATA_DIR).parent_path();
 // Lower layers first; a core file may include files of its own layer or below, never above.
 const std::map<std::string, int> kCoreLayer = {
     {"errors", 0},           {"user_path", 0},      {"atomic_file", 0},      {"latency_histogram", 0},
-    {"parallel", 0},         {"float_rounding", 0}, {"checksum", 0}, {"enum_names", 0},       {"mesh", 1},
+    {"parallel", 0},         {"float_rounding", 0}, {"checksum", 0}, {"vector_bytes", 0}, {"enum_names", 0},       {"mesh", 1},
     {"geometry", 1},         {"mesh_loader", 1},    {"morton", 1},           {"probes", 1},
     {"contact", 2},          {"brute_force", 2},    {"sphere_placement", 3}, {"clustering", 3},
     {"tight_clustering", 3}, {"sphere_set", 4},     {"sphere_set_io", 4},    {"box_tree", 2},

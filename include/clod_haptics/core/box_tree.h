@@ -31,6 +31,16 @@ struct BoxNode {
 std::uint32_t buildBoxTree(const std::vector<Eigen::AlignedBox3d>& boxes, int leafSize, double pad,
                            std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order, unsigned threads = 2);
 
+/**
+ * \brief Whether a node's box holds box padded by pad, compared in double (the build rounds the padded box outward
+ * to float, so a built tree's leaf holds its items' boxes exactly by this test).
+ */
+inline bool nodeHoldsPadded(const BoxNode& node, const Eigen::AlignedBox3d& box, double pad) {
+  for (int k = 0; k < 3; ++k)
+    if (!(node.lo[k] <= box.min()[k] - pad && node.hi[k] >= box.max()[k] + pad)) return false;
+  return true;
+}
+
 /** \brief The deepest tree the walks follow: their stacks hold 64 (detector) and 128 (swept query) entries. */
 constexpr int kMaxBoxTreeDepth = 60;
 
