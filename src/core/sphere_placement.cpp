@@ -27,8 +27,9 @@ constexpr double kTauStep = 0.01;
 inline double tau(int k) { return kTau0 + kTauStep * k; }
 
 int firstAdmittingStep(double minDot) {
-  // A dot of unit vectors; clamped (NaN to -1) so that a normal off unit length cannot overflow the int.
-  minDot = minDot <= 1.0 ? std::max(minDot, -1.0) : (minDot > 1.0 ? 1.0 : -1.0);
+  // A dot of unit vectors; clamped to [-1, 1] (NaN to -1) so that a normal off unit length cannot overflow the int.
+  if (!(minDot >= -1.0)) minDot = -1.0;
+  if (minDot > 1.0) minDot = 1.0;
   int k = static_cast<int>(std::floor((minDot - kTau0) / kTauStep)) + 1;
   k = std::max(k, 0);
   while (k > 0 && minDot < tau(k - 1)) --k;  // guard the floor against rounding
