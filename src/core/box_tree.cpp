@@ -125,6 +125,29 @@ constexpr std::uint32_t kTwoThreadsFrom = 16384;
 
 }  // namespace
 
+std::size_t boxTreeNodeCount(std::size_t items, int leafSize) {
+  if (items == 0) return 0;
+  // Every depth holds runs of at most two sizes, m and m + 1 (halving keeps them adjacent): count those.
+  const std::size_t leaf = static_cast<std::size_t>(std::max(1, leafSize));
+  std::size_t nodes = 0, m = items, small = 1, large = 0;  // runs of size m and of size m + 1
+  while (small + large > 0) {
+    nodes += small + large;
+    std::size_t nextSmall = 0, nextLarge = 0;
+    const std::size_t half = m / 2;  // the next depth's smaller size
+    auto split = [&](std::size_t size, std::size_t runs) {
+      if (runs == 0 || size <= leaf) return;                   // leaves
+      const std::size_t left = size / 2, right = size - left;  // right is left or left + 1
+      for (const std::size_t part : {left, right}) (part == half ? nextSmall : nextLarge) += runs;
+    };
+    split(m, small);
+    split(m + 1, large);
+    m = half;
+    small = nextSmall;
+    large = nextLarge;
+  }
+  return nodes;
+}
+
 std::uint32_t buildBoxTree(const std::vector<Eigen::AlignedBox3d>& boxes, int leafSize, double pad,
                            std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order, unsigned threads) {
   if (boxes.empty()) return std::numeric_limits<std::uint32_t>::max();

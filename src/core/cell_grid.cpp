@@ -100,13 +100,59 @@ double cellFactor(const MeshFigures& f, std::size_t triangles, double radius) {
   return kCellFactor;
 }
 
-/** The cell side, grown until the grid has at most kMaxDim - 4 cells per axis and about maxEntries candidates. */
-double cellSide(const MeshFigures& f, std::size_t triangles, double radius, double maxEntries) {
+/**
+ * Expected non-empty cells of side h: those whose centres lie within reach of the surface, about the shell
+ * 2 reach A (plus a ball's volume, for a mesh small against reach), at most one per candidate.
+ */
+double estimatedCells(const MeshFigures& f, double candidates, double reach, double h) {
+  constexpr double kPi = 3.141592653589793;
+  return std::min(candidates, (2.0 * reach * f.area + (4.0 / 3.0) * kPi * reach * reach * reach) / (h * h * h));
+}
+
+/**
+ * Expected bytes of a grid of side h: 8 per candidate; per non-empty cell its header entry (8), its slab (8) and its
+ * header's index (4); and the dense index's bit words (16 bytes per 64 cells of the box).
+ */
+double estimatedBytes(const MeshFigures& f, std::size_t triangles, double radius, double h) {
+  const double reach = radius + kHalfDiagonal * h;
+  const double candidates = estimatedCandidates(f, triangles, reach, h);
+  const Vec3 box = (f.bounds.sizes() + Vec3::Constant(2.0 * (reach + h))) / h;
+  return 8.0 * candidates + 20.0 * estimatedCells(f, candidates, reach, h) + 0.25 * box.prod();
+}
+
+/** Expected candidates of a non-empty cell of side h (what a query scans). */
+double estimatedPerCell(const MeshFigures& f, std::size_t triangles, double radius, double h) {
+  const double reach = radius + kHalfDiagonal * h;
+  const double candidates = estimatedCandidates(f, triangles, reach, h);
+  return candidates / std::max(1.0, estimatedCells(f, candidates, reach, h));
+}
+
+/**
+ * The cell side: grown until the grid has at most kMaxDim - 4 cells per axis and about maxEntries candidates (the hard
+ * limit on memory); then, while the grid would take more than bytesPerTriangle per triangle, grown further as long as
+ * a cell keeps at most kCheapCell candidates, up to kCoarsest times the side the queries chose. A mesh of large
+ * triangles (a few per cell) is answered as fast by coarser cells and takes a fraction of the memory and build time;
+ * a mesh whose cells are already crowded (small or long thin triangles) keeps the side its queries need; and beyond
+ * a few times the chosen side the cells' bounds and slabs (their slack grows with the side) let through triangles
+ * that finer cells drop: on an ellipsoid of 20 r triangles, cells of 2.4 times the side answered free and in-contact
+ * probes as fast as before, cells of 3.8 times 12% slower free and 25% slower on coherent paths (bench/README.md).
+ */
+double cellSide(const MeshFigures& f, std::size_t triangles, double radius, double maxEntries,
+                double bytesPerTriangle) {
+  constexpr double kCheapCell = 16.0, kCoarsest = 2.5;
   double h = cellFactor(f, triangles, radius) * radius;
   const double extent = f.bounds.sizes().maxCoeff() + 2.0 * (radius + 2.0 * h);
   h = std::max(h, extent / static_cast<double>(kMaxDim - 4));
   for (int guard = 0; guard < 64; ++guard) {
     if (estimatedCandidates(f, triangles, radius + kHalfDiagonal * h, h) <= maxEntries) break;
+    h *= 1.25;
+  }
+  const double maxBytes = bytesPerTriangle * static_cast<double>(triangles);
+  const double cap = kCoarsest * h;
+  for (int guard = 0; guard < 64 && 1.25 * h <= cap; ++guard) {
+    if (estimatedBytes(f, triangles, radius, h) <= maxBytes ||
+        estimatedPerCell(f, triangles, radius, 1.25 * h) > kCheapCell)
+      break;
     h *= 1.25;
   }
   return h;
@@ -649,12 +695,13 @@ class SlabBuilder {
 }  // namespace
 
 CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle,
-                   Index index, double sliceCandidates) {
+                   Index index, double sliceCandidates, double bytesPerTriangle) {
   if (!(radius > 0.0) || !std::isfinite(radius))
     throw InvalidParameter("cell grid radius must be finite and > 0, got " + std::to_string(radius));
   const MeshFigures figures = measure(mesh);
   const double maxEntries = std::max(1e6, entriesPerTriangle * static_cast<double>(mesh.size()));
-  const Layout layout = placeCells(figures, radius, cellSide(figures, mesh.size(), radius, maxEntries));
+  const Layout layout =
+      placeCells(figures, radius, cellSide(figures, mesh.size(), radius, maxEntries, bytesPerTriangle));
   const double h = layout.h;
   radius_ = radius;
   cell_ = h;
@@ -691,7 +738,11 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
 bool CellGrid::useDenseIndex(Index index, std::size_t triangles) const {
   const double total = cellsOfBox(dims_);
   const double denseBytes = total / 64.0 * sizeof(Word) + 12.0 * static_cast<double>(cellCount_);
-  const double budget = std::max(4.0 * 1024 * 1024, 16.0 * static_cast<double>(triangles));
+  // The dense index is faster (a rank instead of a probe sequence): it is taken when it is no larger than the hashed
+  // one (24-byte slots, at most half full) or within 16 bytes per triangle.
+  double slots = 16.0;
+  while (slots < 2.0 * static_cast<double>(cellCount_)) slots *= 2.0;
+  const double budget = std::max(24.0 * slots, 16.0 * static_cast<double>(triangles));
   const bool fits = entries_.size() < (1ull << 32) && total < 17179869184.0;  // 2^34 cells
   return fits && (index == Index::Dense || (index == Index::Auto && denseBytes <= budget));
 }

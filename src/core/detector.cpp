@@ -298,7 +298,7 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
           throw InvalidParameter("ClodDetector: the grid source gave trees over " +
                                  std::to_string(trees_.ballOrder.size()) + " spheres, expected " + std::to_string(n));
       } else {
-        grid_ = CellGrid(m, s, radius);
+        grid_ = CellGrid(m, s, radius, 24.0, CellGrid::Index::Auto, 1e6, gridBytesPerTriangle(m, s, trees_));
       }
       if (grid_.radius() != radius)
         throw InvalidParameter("ClodDetector: the grid source gave a grid of radius " + std::to_string(grid_.radius()) +
@@ -311,8 +311,30 @@ ClodDetector::GridParts ClodDetector::buildGridParts(const TriangleMesh& mesh, c
                                                      double radius) {
   GridParts parts;
   parts.trees = buildSphereTrees(mesh, spheres, meshBoxTreePad(mesh));
-  parts.grid = CellGrid(mesh, spheres, radius);  // last: its construction peak meets only the trees kept
+  // Last: its construction peak meets only the trees kept.
+  parts.grid = CellGrid(mesh, spheres, radius, 24.0, CellGrid::Index::Auto, 1e6,
+                        gridBytesPerTriangle(mesh, spheres, parts.trees));
   return parts;
+}
+
+double ClodDetector::gridBytesPerTriangle(const TriangleMesh& mesh, const ClodSphereSet& spheres,
+                                          const SphereTrees& trees) {
+  const double n = static_cast<double>(std::max<std::size_t>(1, mesh.size()));
+  // By sizes, not capacities: the same for trees built here and read back from a file.
+  auto nodes = [](std::size_t count) { return static_cast<double>(count * sizeof(BoxNode)); };
+  const double treeBytes =
+      nodes(trees.ballNodes.size()) + nodes(trees.tightNodes.size()) + nodes(trees.gapNodes.size()) +
+      4.0 * static_cast<double>(trees.ballOrder.size()) + 4.0 * static_cast<double>(trees.tightOrder.size()) +
+      4.0 * static_cast<double>(trees.gapOrder.size()) + 4.0 * static_cast<double>(trees.gapRadius.size());
+  // The mesh's box tree (nodes, their slabs, the order) and the per-sphere (padded sphere) and per-triangle (first
+  // sphere) arrays.
+  const double meshTree = static_cast<double>(
+      boxTreeNodeCount(mesh.size(), kMeshBoxTreeLeafSize) * (sizeof(BoxNode) + sizeof(NodeSlab)) + 4 * mesh.size());
+  const double arrays = 32.0 * static_cast<double>(spheres.size()) + 4.0 * static_cast<double>(mesh.size());
+  const double other = static_cast<double>(sizeof(ClodDetector)) + treeBytes + meshTree + arrays;
+  // Aimed 5% under the target: the grid's size is estimated before its build, and the arrays' capacities may exceed
+  // their sizes.
+  return std::max(kMinGridBytesPerTriangle, 0.95 * kBytesPerTriangle - other / n);
 }
 
 double ClodDetector::effectiveGridRadius(const TriangleMesh& mesh, double gridRadius) {

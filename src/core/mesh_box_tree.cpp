@@ -9,7 +9,6 @@
 namespace clod_haptics {
 
 namespace {
-constexpr int kLeafSize = 4;
 }  // namespace
 
 std::uint64_t meshFingerprint(const TriangleMesh& mesh) {
@@ -33,7 +32,7 @@ std::shared_ptr<const MeshBoxTree> buildMeshBoxTree(const TriangleMesh& mesh) {
     for (int v = 0; v < 3; ++v) boxes[t].extend(mesh.vertex(t, v));
   }
   const double pad = meshBoxTreePad(mesh);
-  buildBoxTree(boxes, kLeafSize, pad, tree->nodes, tree->order);
+  buildBoxTree(boxes, kMeshBoxTreeLeafSize, pad, tree->nodes, tree->order);
   tree->slabs = meshTreeSlabs(*tree, mesh, pad);
   tree->servesFingerprint = meshFingerprint(mesh);
   return tree;

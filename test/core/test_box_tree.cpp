@@ -126,6 +126,21 @@ TEST(BoxTree, TwoThreadsBuildTheSameTree) {
   }
 }
 
+// boxTreeNodeCount counts, from the item count alone, the nodes buildBoxTree makes (what a caller sizing memory
+// before the build relies on).
+TEST(BoxTree, NodeCountIsKnownBeforeTheBuild) {
+  std::mt19937_64 rng(11);
+  for (int leaf : {1, 2, 4, 7}) {
+    for (std::size_t n : {0, 1, 2, 3, 4, 5, 7, 8, 9, 15, 16, 17, 100, 1000, 1023, 1025, 4097, 20000}) {
+      const std::vector<Box> boxes = randomBoxes(rng, n, 1.0, V::Zero());
+      std::vector<clod_haptics::BoxNode> nodes;
+      std::vector<std::uint32_t> order;
+      clod_haptics::buildBoxTree(boxes, leaf, 0.0, nodes, order);
+      EXPECT_EQ(clod_haptics::boxTreeNodeCount(n, leaf), nodes.size()) << n << " items, leaves of " << leaf;
+    }
+  }
+}
+
 TEST(BoxTree, EmptyInputHasNoRoot) {
   std::vector<clod_haptics::BoxNode> nodes;
   std::vector<std::uint32_t> order;

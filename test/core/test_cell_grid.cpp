@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <set>
 #include <vector>
@@ -130,10 +131,15 @@ TEST(CellGrid, ContractOnSharedMeshes) {
     const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
     const ClodSphereSet set = ClodBuilder(mesh).build(0.02);
     for (double radius : {0.005, 0.02}) {
+      // The default grid (coarser cells where they are cheap, few of them on the 8-triangle mesh) and the finest.
       const CellGrid grid(*mesh, set, radius);
-      EXPECT_FALSE(grid.empty());
-      EXPECT_GE(grid.cellSize(), 2 * radius * (1 - 1e-12));
-      EXPECT_GT(checkGrid(*mesh, grid, probesNear(*mesh, 2 * radius, 3), name, &set), 100u);
+      const CellGrid fine(*mesh, set, radius, 24.0, CellGrid::Index::Auto, 1e6,
+                          std::numeric_limits<double>::infinity());
+      for (const CellGrid* g : {&grid, &fine}) {
+        EXPECT_FALSE(g->empty());
+        EXPECT_GE(g->cellSize(), 2 * radius * (1 - 1e-12));
+        EXPECT_GT(checkGrid(*mesh, *g, probesNear(*mesh, 2 * radius, 3), name, &set), g == &fine ? 100u : 20u);
+      }
     }
   }
 }
@@ -258,11 +264,12 @@ TEST(CellGrid, LargestCellIsTheMostCrowdedCell) {
   }
 }
 
-// The cell side is grown beyond its 3 r only for the memory budget, and only as far as the budget needs: a grown
-// grid holds at least 0.4 of its budget of candidates (one growth step of 1.25 fewer would exceed it), a grid never
-// much more than the budget. Long thin triangles are the shape a bounding-box estimate gets wrong: it took a sliver
-// for the cube of its length and grew the cells of a strip cylinder to 13 r with 5% of the budget used, every cell
-// then listing tens of strips more than the pointer can touch.
+// The cell side is grown beyond its 3 r for the hard memory budget (candidates) only as far as that budget needs: a
+// grown grid holds at least 0.4 of its budget of candidates (one growth step of 1.25 fewer would exceed it), a grid
+// never much more than the budget (the size target, bytesPerTriangle, is switched off here: see the next test). Long
+// thin triangles are the shape a bounding-box estimate gets wrong: it took a sliver for the cube of its length and grew
+// the cells of a strip cylinder to 13 r with 5% of the budget used, every cell then listing tens of strips more than
+// the pointer can touch.
 TEST(CellGrid, CellsGrowOnlyAsFarAsTheBudgetNeeds) {
   // A cylinder of 1,000 full-height strips (2,000 slivers 0.3 r wide and 200 r long at r = 0.005), open at both
   // ends: at r = 0.005 its cells stay at 3 r, at r = 0.002 they must grow.
@@ -288,7 +295,7 @@ TEST(CellGrid, CellsGrowOnlyAsFarAsTheBudgetNeeds) {
     const ClodSphereSet set = ClodBuilder(mesh).build(0.0);
     for (const double r : {0.005, 0.002}) {
       const double budget = std::max(1e6, 24.0 * static_cast<double>(mesh->size()));
-      const CellGrid grid(*mesh, set, r);
+      const CellGrid grid(*mesh, set, r, 24.0, CellGrid::Index::Auto, 1e6, std::numeric_limits<double>::infinity());
       const double entries = static_cast<double>(grid.entries());
       const bool grown = grid.cellSize() > 3.0 * r * (1.0 + 1e-9);
       if (name == "strip cylinder") {
@@ -301,6 +308,46 @@ TEST(CellGrid, CellsGrowOnlyAsFarAsTheBudgetNeeds) {
         EXPECT_GE(entries, 0.4 * budget) << "r " << r << ", cell " << grid.cellSize() / r << " r";
       }
     }
+  }
+}
+
+// Beyond the hard budget, the grid takes coarser cells to fit bytesPerTriangle only where a cell keeps a few
+// candidates and at most 2.5 times the side the queries chose: on a mesh of large triangles it shrinks (and keeps the
+// contract), on the strip cylinder (slivers 200 r long, tens of them within reach of each cell) it keeps its 3 r.
+TEST(CellGrid, CoarserCellsOnlyWhereACellStaysCheap) {
+  std::vector<Vec3> vertices;
+  std::vector<Triangle> triangles;
+  const std::uint32_t strips = 1000;
+  for (std::uint32_t i = 0; i < strips; ++i) {
+    const double a = 2.0 * M_PI * i / strips;
+    vertices.push_back(Vec3(0.5 + 0.25 * std::cos(a), 0.5 + 0.25 * std::sin(a), 0.0));
+    vertices.push_back(Vec3(0.5 + 0.25 * std::cos(a), 0.5 + 0.25 * std::sin(a), 1.0));
+  }
+  for (std::uint32_t i = 0; i < strips; ++i) {
+    const std::uint32_t j = (i + 1) % strips;
+    triangles.push_back({2 * i, 2 * j, 2 * j + 1});
+    triangles.push_back({2 * i, 2 * j + 1, 2 * i + 1});
+  }
+  const auto strip = std::make_shared<const TriangleMesh>(makeMesh(vertices, triangles, "strips"));
+  const auto head = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
+  const double r = 0.005, unlimited = std::numeric_limits<double>::infinity();
+  {
+    const ClodSphereSet set = ClodBuilder(head).build(0.02);
+    const CellGrid fine(*head, set, r, 24.0, CellGrid::Index::Auto, 1e6, unlimited);
+    const CellGrid coarse(*head, set, r, 24.0, CellGrid::Index::Auto, 1e6, 64.0);
+    const double n = static_cast<double>(head->size());
+    EXPECT_GT(coarse.cellSize(), fine.cellSize() * 1.2);
+    EXPECT_LE(coarse.cellSize(), 2.5 * fine.cellSize() * (1 + 1e-9));
+    EXPECT_LT(static_cast<double>(coarse.bytes()), 0.5 * static_cast<double>(fine.bytes()));
+    EXPECT_GT(static_cast<double>(fine.bytes()), 64.0 * n);
+    checkGrid(*head, coarse, probesNear(*head, 2 * r, 23), "head, coarse", &set);
+  }
+  {
+    const ClodSphereSet set = ClodBuilder(strip).build(0.0);
+    const CellGrid fine(*strip, set, r, 24.0, CellGrid::Index::Auto, 1e6, unlimited);
+    const CellGrid small(*strip, set, r, 24.0, CellGrid::Index::Auto, 1e6, 64.0);
+    EXPECT_EQ(small.cellSize(), fine.cellSize());
+    EXPECT_GT(static_cast<double>(small.bytes()), 64.0 * static_cast<double>(strip->size()));
   }
 }
 

@@ -32,6 +32,12 @@ std::uint32_t buildBoxTree(const std::vector<Eigen::AlignedBox3d>& boxes, int le
                            std::vector<BoxNode>& nodes, std::vector<std::uint32_t>& order, unsigned threads = 2);
 
 /**
+ * \brief How many nodes buildBoxTree makes for items items with leaves of leafSize (it splits every run at its
+ * middle, so the count depends on nothing else): what a caller sizing memory ahead of the build can count on.
+ */
+std::size_t boxTreeNodeCount(std::size_t items, int leafSize);
+
+/**
  * \brief Whether a node's box holds box padded by pad, compared in double (the build rounds the padded box outward
  * to float, so a built tree's leaf holds its items' boxes exactly by this test).
  */

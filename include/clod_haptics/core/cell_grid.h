@@ -156,16 +156,20 @@ class CellGrid {
   /**
    * \brief Builds the grid for pointers of radius up to radius (> 0). Cell side is 2 to 3 radius, grown
    * when the grid would exceed 2^21 cells per axis or its memory budget: max(10^6, entriesPerTriangle x
-   * triangles) candidates (8 bytes each), so memory stays linear in the mesh beyond 41,667 triangles. The
-   * candidates are estimated before the build from the triangles' total area, perimeter and count (the
-   * volume of each triangle grown by a cell's reach), which holds for small, large and long thin triangles.
-   * \param index Auto: dense when its bit index takes at most max(4 MiB, 16 bytes per triangle),
-   * hashed otherwise; Dense or Hashed force one (Dense falls back to Hashed beyond 2^34 cells).
+   * triangles) candidates (8 bytes each), so memory stays linear in the mesh beyond 41,667 triangles. Then,
+   * while the grid would take more than bytesPerTriangle, grown further (up to 2.5 times) as long as a cell keeps
+   * at most 16 candidates: where triangles are large against the cells, coarser cells answer as fast and take
+   * less memory and build time. The candidates, cells and index are estimated before the build from the
+   * triangles' total area, perimeter and count (the volume of each triangle grown by a cell's reach), which holds
+   * for small, large and long thin triangles.
+   * \param index Auto: dense when its bit index takes no more than the hashed index would, or at most 16 bytes
+   * per triangle, hashed otherwise; Dense or Hashed force one (Dense falls back to Hashed beyond 2^34 cells).
    * \param sliceCandidates the build collects candidates in slices of z of about this many (the peak
    * memory of the build is the entries plus one slice's 24-byte candidates); the grid is the same.
+   * \param bytesPerTriangle the size the grid aims at where coarser cells cost no query speed (see above).
    */
   CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle = 24.0,
-           Index index = Index::Auto, double sliceCandidates = 1e6);
+           Index index = Index::Auto, double sliceCandidates = 1e6, double bytesPerTriangle = 192.0);
 
   /** \brief The largest pointer radius the grid answers for; larger pointers need another descent. */
   double radius() const { return radius_; }

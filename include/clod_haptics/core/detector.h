@@ -98,6 +98,13 @@ class ClodDetector {
    */
   static GridParts buildGridParts(const TriangleMesh& mesh, const ClodSphereSet& spheres, double radius);
   /**
+   * \brief The bytes per triangle a Grid detector of mesh and spheres gives its grid (CellGrid's bytesPerTriangle):
+   * kBytesPerTriangle less what it keeps beside the grid (trees, as given, the mesh's box tree, per-sphere and
+   * per-triangle arrays), at least kMinGridBytesPerTriangle. A function of the mesh's and set's sizes and the trees'
+   * only, so a grid built for a disk cache is the grid the detector builds.
+   */
+  static double gridBytesPerTriangle(const TriangleMesh& mesh, const ClodSphereSet& spheres, const SphereTrees& trees);
+  /**
    * \brief A grid cell that lists more triangles than this is answered through the tree over the mesh instead of
    * its sorted scan. Such cells come from triangles far smaller than the grid radius (thousands within reach of
    * every point of the cell, most of them scanned); the tree then reads a few dozen. Measured on ellipsoids
@@ -106,6 +113,14 @@ class ClodDetector {
    * triangle within the radius, ties to the lowest index).
    */
   static constexpr std::uint32_t kTreeAboveEntries = 2048;
+  /**
+   * \brief The memory a Grid detector aims at per triangle, everything it keeps counted (bytes()): its grid is given
+   * what the trees and arrays leave (CellGrid's bytesPerTriangle, at least kMinGridBytesPerTriangle), and takes it
+   * only where coarser cells cost its queries no speed; a mesh of small or long thin triangles keeps the cells its
+   * queries need and may take more.
+   */
+  static constexpr double kBytesPerTriangle = 300.0;
+  static constexpr double kMinGridBytesPerTriangle = 64.0;
   /** \brief The radius of the grid a Grid detector of mesh builds for gridRadius (0: 1% of the diagonal). */
   static double effectiveGridRadius(const TriangleMesh& mesh, double gridRadius);
   /** \brief The same from the mesh's bounds (TriangleMesh::bounds). */

@@ -17,8 +17,9 @@ namespace clod_haptics {
  * \brief Version of the binary grid cache format; part of every grid file's name and header. Bump it whenever
  * CellGrid's layout or its build (cell sizing, candidates, slabs) changes: a file answers as the build that wrote it.
  * 4: the detector's trees over the spheres follow the grid (SphereTrees), and the checksum is cacheChecksum.
+ * 5: a grid of large triangles takes coarser cells to fit the detector's memory target (gridBytesPerTriangle).
  */
-constexpr std::uint32_t kGridCacheFormatVersion = 4;
+constexpr std::uint32_t kGridCacheFormatVersion = 5;
 
 /** \brief What a cached grid was built from: the level (mesh, d, its sphere set) and CellGrid's parameters. */
 struct GridCacheKey {

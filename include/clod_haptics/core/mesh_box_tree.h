@@ -46,6 +46,9 @@ struct MeshBoxTree {
   std::uint64_t servesFingerprint = 0;
 };
 
+/** \brief Triangles per leaf of the MeshBoxTree, at most. */
+constexpr int kMeshBoxTreeLeafSize = 4;
+
 /** \brief A checksum of the mesh's vertices and triangles (cacheChecksum): what a box tree over it depends on. */
 std::uint64_t meshFingerprint(const TriangleMesh& mesh);
 
