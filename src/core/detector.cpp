@@ -776,6 +776,9 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
     best.found = false;
     const std::uint32_t tested = lastContact(cache);  // passed over by the walk (see preciseGrid)
     if (tested != kNone) testGridTriangle(tested, p, mode, best);
+    // A push a little deeper than the grid radius (the usual one: a stylus pressed in) is answered by the cell of p,
+    // which the search within r has just read, when the last answer's triangle lies within what the cell lists.
+    if (best.found && deepFromCell(p, mode, best, cache, tested)) return;
     preciseMeshTree(p, mode, best, tested);
     return;
   }
@@ -789,6 +792,25 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
     search(p, reach, mode, best, cache);
     if (best.found || !(reach < diagonal)) break;
   }
+}
+
+bool ClodDetector::deepFromCell(const Vec3& p, DetectionMode mode, Best& best, const QueryCache* cache,
+                                std::uint32_t skip) const {
+  if (grid_.empty()) return false;
+  const std::uint64_t key = grid_.keyOf(p);
+  const CellGrid::CellRef* ref =
+      cache != nullptr && cache->owner == id_ && cache->key == key ? static_cast<const CellGrid::CellRef*>(cache->cell)
+                                                                   : grid_.find(key);
+  if (ref == nullptr) return false;
+  const CellGrid::Cell cell = grid_.cell(*ref);
+  if (cell.count > kTreeAboveEntries) return false;  // a crowded cell: the tree reads fewer
+  const Vec3 rel = p - grid_.centreOf(key);
+  // The nearest triangle is no farther than the best so far; when the cell lists everything within that distance of
+  // p, one scan finds the nearest (ties to the lowest index, as the tree walk: the scan's bounds hold for any reach).
+  // Otherwise the cell may not hold it: the tree, without scanning the cell for nothing.
+  if (!(best.reach <= grid_.listedWithin(rel))) return false;
+  scanCell(cell, rel, p, mode, best, static_cast<std::nullptr_t*>(nullptr), skip);
+  return true;
 }
 
 inline void ClodDetector::answer(const Vec3& p, double r, const Best& best, ContactResult& out,

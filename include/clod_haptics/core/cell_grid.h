@@ -261,6 +261,15 @@ class CellGrid {
     return Cell{header + 1, header->triangle, spheres};
   }
   /**
+   * \brief How far from the point p = centre + rel of a cell every triangle is listed by that cell: the cell
+   * lists every triangle within radius() + h sqrt(3) / 2 of its centre, so every one within that less |rel| of p
+   * (less a rounding margin). Beyond radius(): a search for the nearest triangle farther than the radius (a
+   * pointer pushed deeper) is answered by the cell alone when it finds one within this distance.
+   */
+  double listedWithin(const Vec3& rel) const noexcept {
+    return radius_ + 0.8660254037844386 * cell_ - rel.norm() - slabPad_;
+  }
+  /**
    * \brief Whether the pointer (p = centre + rel, radius r <= radius()) in the cell certainly touches
    * no triangle: it is farther than r from the cell's slab.
    */
