@@ -126,6 +126,25 @@ std::vector<Vec3> probesNear(const TriangleMesh& mesh, double offset, std::uint6
   return probes;
 }
 
+// A cylinder of radius 0.25 and height 1 made of 1,000 full-height strips (2,000 slivers 0.3 r wide and 200 r long
+// at r = 0.005), open at both ends.
+std::shared_ptr<const TriangleMesh> stripCylinder() {
+  std::vector<Vec3> vertices;
+  std::vector<Triangle> triangles;
+  const std::uint32_t strips = 1000;
+  for (std::uint32_t i = 0; i < strips; ++i) {
+    const double a = 2.0 * M_PI * i / strips;
+    vertices.push_back(Vec3(0.5 + 0.25 * std::cos(a), 0.5 + 0.25 * std::sin(a), 0.0));
+    vertices.push_back(Vec3(0.5 + 0.25 * std::cos(a), 0.5 + 0.25 * std::sin(a), 1.0));
+  }
+  for (std::uint32_t i = 0; i < strips; ++i) {
+    const std::uint32_t j = (i + 1) % strips;
+    triangles.push_back({2 * i, 2 * j, 2 * j + 1});
+    triangles.push_back({2 * i, 2 * j + 1, 2 * i + 1});
+  }
+  return std::make_shared<const TriangleMesh>(makeMesh(vertices, triangles, "strips"));
+}
+
 TEST(CellGrid, ContractOnSharedMeshes) {
   for (const char* name : {"head.off", "mesh_with_border.off", "degtri_sliding.off"}) {
     const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
@@ -271,23 +290,9 @@ TEST(CellGrid, LargestCellIsTheMostCrowdedCell) {
 // the cells of a strip cylinder to 13 r with 5% of the budget used, every cell then listing tens of strips more than
 // the pointer can touch.
 TEST(CellGrid, CellsGrowOnlyAsFarAsTheBudgetNeeds) {
-  // A cylinder of 1,000 full-height strips (2,000 slivers 0.3 r wide and 200 r long at r = 0.005), open at both
-  // ends: at r = 0.005 its cells stay at 3 r, at r = 0.002 they must grow.
-  std::vector<Vec3> vertices;
-  std::vector<Triangle> triangles;
-  const std::uint32_t strips = 1000;
-  for (std::uint32_t i = 0; i < strips; ++i) {
-    const double a = 2.0 * M_PI * i / strips;
-    vertices.push_back(Vec3(0.5 + 0.25 * std::cos(a), 0.5 + 0.25 * std::sin(a), 0.0));
-    vertices.push_back(Vec3(0.5 + 0.25 * std::cos(a), 0.5 + 0.25 * std::sin(a), 1.0));
-  }
-  for (std::uint32_t i = 0; i < strips; ++i) {
-    const std::uint32_t j = (i + 1) % strips;
-    triangles.push_back({2 * i, 2 * j, 2 * j + 1});
-    triangles.push_back({2 * i, 2 * j + 1, 2 * i + 1});
-  }
+  // The strip cylinder: at r = 0.005 its cells stay at 3 r, at r = 0.002 they must grow.
   std::vector<std::pair<std::string, std::shared_ptr<const TriangleMesh>>> meshes{
-      {"strip cylinder", std::make_shared<const TriangleMesh>(makeMesh(vertices, triangles, "strips"))},
+      {"strip cylinder", stripCylinder()},
       {"head.off", clod_test::loadNormalized(clod_test::sharedMesh("head.off"))},
       {"cube.obj", clod_test::loadNormalized(clod_test::testData("cube.obj"))}};
   for (const auto& [name, mesh] : meshes) {
@@ -315,20 +320,7 @@ TEST(CellGrid, CellsGrowOnlyAsFarAsTheBudgetNeeds) {
 // candidates and at most 2.5 times the side the queries chose: on a mesh of large triangles it shrinks (and keeps the
 // contract), on the strip cylinder (slivers 200 r long, tens of them within reach of each cell) it keeps its 3 r.
 TEST(CellGrid, CoarserCellsOnlyWhereACellStaysCheap) {
-  std::vector<Vec3> vertices;
-  std::vector<Triangle> triangles;
-  const std::uint32_t strips = 1000;
-  for (std::uint32_t i = 0; i < strips; ++i) {
-    const double a = 2.0 * M_PI * i / strips;
-    vertices.push_back(Vec3(0.5 + 0.25 * std::cos(a), 0.5 + 0.25 * std::sin(a), 0.0));
-    vertices.push_back(Vec3(0.5 + 0.25 * std::cos(a), 0.5 + 0.25 * std::sin(a), 1.0));
-  }
-  for (std::uint32_t i = 0; i < strips; ++i) {
-    const std::uint32_t j = (i + 1) % strips;
-    triangles.push_back({2 * i, 2 * j, 2 * j + 1});
-    triangles.push_back({2 * i, 2 * j + 1, 2 * i + 1});
-  }
-  const auto strip = std::make_shared<const TriangleMesh>(makeMesh(vertices, triangles, "strips"));
+  const auto strip = stripCylinder();
   const auto head = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
   const double r = 0.005, unlimited = std::numeric_limits<double>::infinity();
   {
