@@ -243,6 +243,14 @@ void buildTriangleTrees(const TriangleMesh& m, const ClodSphereSet& s, double pa
 }
 }  // namespace
 
+namespace {
+// The grid of a Grid detector, built by the detector or for the disk cache (buildGridParts): one set of parameters.
+CellGrid detectorGrid(const TriangleMesh& mesh, const ClodSphereSet& spheres, double radius, const SphereTrees& trees) {
+  return CellGrid(mesh, spheres, radius, 24.0, CellGrid::Index::Auto, 1e6,
+                  ClodDetector::gridBytesPerTriangle(mesh, spheres, trees));
+}
+}  // namespace
+
 ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared_ptr<const ClodSphereSet> spheres,
                            FastLevel fastLevel, double gridRadius, const GridSource& gridSource)
     : mesh_(std::move(mesh)), spheres_(std::move(spheres)), fastLevel_(fastLevel), id_(nextDetectorId()) {
@@ -298,7 +306,7 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
           throw InvalidParameter("ClodDetector: the grid source gave trees over " +
                                  std::to_string(trees_.ballOrder.size()) + " spheres, expected " + std::to_string(n));
       } else {
-        grid_ = CellGrid(m, s, radius, 24.0, CellGrid::Index::Auto, 1e6, gridBytesPerTriangle(m, s, trees_));
+        grid_ = detectorGrid(m, s, radius, trees_);
       }
       if (grid_.radius() != radius)
         throw InvalidParameter("ClodDetector: the grid source gave a grid of radius " + std::to_string(grid_.radius()) +
@@ -311,16 +319,14 @@ ClodDetector::GridParts ClodDetector::buildGridParts(const TriangleMesh& mesh, c
                                                      double radius) {
   GridParts parts;
   parts.trees = buildSphereTrees(mesh, spheres, meshBoxTreePad(mesh));
-  // Last: its construction peak meets only the trees kept.
-  parts.grid = CellGrid(mesh, spheres, radius, 24.0, CellGrid::Index::Auto, 1e6,
-                        gridBytesPerTriangle(mesh, spheres, parts.trees));
+  parts.grid = detectorGrid(mesh, spheres, radius, parts.trees);  // last: its construction peak meets only the trees
   return parts;
 }
 
 double ClodDetector::gridBytesPerTriangle(const TriangleMesh& mesh, const ClodSphereSet& spheres,
                                           const SphereTrees& trees) {
   const double n = static_cast<double>(std::max<std::size_t>(1, mesh.size()));
-  // By sizes, not capacities: the same for trees built here and read back from a file.
+  // By sizes, not capacities: what the trees hold, whatever their vectors reserved.
   auto nodes = [](std::size_t count) { return static_cast<double>(count * sizeof(BoxNode)); };
   const double treeBytes =
       nodes(trees.ballNodes.size()) + nodes(trees.tightNodes.size()) + nodes(trees.gapNodes.size()) +
@@ -798,9 +804,9 @@ bool ClodDetector::deepFromCell(const Vec3& p, DetectionMode mode, Best& best, c
                                 std::uint32_t skip) const {
   if (grid_.empty()) return false;
   const std::uint64_t key = grid_.keyOf(p);
-  const CellGrid::CellRef* ref =
-      cache != nullptr && cache->owner == id_ && cache->key == key ? static_cast<const CellGrid::CellRef*>(cache->cell)
-                                                                   : grid_.find(key);
+  const CellGrid::CellRef* ref = cache != nullptr && cache->owner == id_ && cache->key == key
+                                     ? static_cast<const CellGrid::CellRef*>(cache->cell)
+                                     : grid_.find(key);
   if (ref == nullptr) return false;
   const CellGrid::Cell cell = grid_.cell(*ref);
   if (cell.count > kTreeAboveEntries) return false;  // a crowded cell: the tree reads fewer

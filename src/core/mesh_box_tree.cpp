@@ -8,9 +8,6 @@
 
 namespace clod_haptics {
 
-namespace {
-}  // namespace
-
 std::uint64_t meshFingerprint(const TriangleMesh& mesh) {
   const std::uint64_t sums[2] = {cacheChecksum(mesh.vertices.data(), mesh.vertices.size() * sizeof(Vec3)),
                                  cacheChecksum(mesh.triangles.data(), mesh.triangles.size() * sizeof(Triangle))};
