@@ -813,10 +813,26 @@ bool ClodDetector::deepFromCell(const Vec3& p, DetectionMode mode, Best& best, c
   const Vec3 rel = p - grid_.centreOf(key);
   // The nearest triangle is no farther than the best so far; when the cell lists everything within that distance of
   // p, one scan finds the nearest (ties to the lowest index, as the tree walk: the scan's bounds hold for any reach).
-  // Otherwise the cell may not hold it: the tree, without scanning the cell for nothing.
-  if (!(best.reach <= grid_.listedWithin(rel))) return false;
+  const double listed = grid_.listedWithin(rel);
+  if (best.reach <= listed) {
+    scanCell(cell, rel, p, mode, best, static_cast<std::nullptr_t*>(nullptr), skip);
+    return true;
+  }
+  // The best so far lies beyond what the cell lists (a fast push: the last answer's triangle is far behind). The
+  // nearest may still lie within it: a scan bounded there finds it when it does (every triangle nearer than what it
+  // finds is listed), and the tree, from the best so far, answers otherwise.
+  // The cell's slab proves when nothing it lists lies within that reach (p deep behind the surface): then the tree.
+  if (!(listed > 0.0) || grid_.noContact(*ref, rel, listed)) return false;
+  const Best far = best;
+  best.d2 = listed * listed;
+  best.reach = listed;
+  best.found = false;
   scanCell(cell, rel, p, mode, best, static_cast<std::nullptr_t*>(nullptr), skip);
-  return true;
+  if (best.found) return true;
+  const std::uint32_t tested = best.tested;
+  best = far;
+  best.tested = tested;
+  return false;
 }
 
 inline void ClodDetector::answer(const Vec3& p, double r, const Best& best, ContactResult& out,

@@ -1020,6 +1020,30 @@ TEST(ClodDetector, PushingInKeepsTheForceGrowing) {
 // every answer (contact, distance, inside, triangle) is the signed brute force's. The first steps beyond r are
 // answered from the grid cell of the centre (listedWithin), the deeper ones by the tree over the mesh: both are
 // checked against every triangle.
+// Compares a followed stream's answers with the signed brute force (bruteForceSignedQuery): the stream entered within
+// r, so it follows the push, and the signed reference answers as such a stream (contact, depth r + distance) wherever
+// the centre is behind the surface. Except where the reference calls a centre behind the surface that the stream
+// never entered (a free point farther than r from the surface: it left the model and came back deeper, or the nearest
+// feature's pseudo-normal points away, as on mannequin-devil's overlapping parts): counted apart, not compared.
+struct SignedStreamCheck {
+  double r, tol;
+  int wrong = 0, deep = 0, unentered = 0;
+  void operator()(const ContactResult& got, const ContactResult& ref, int push, int step) {
+    if (!got.contact && ref.contact && ref.inside && ref.distance > r) {
+      ++unentered;
+      return;
+    }
+    if (got.contact && got.inside && got.distance > r) ++deep;
+    const bool same =
+        got.contact == ref.contact && (!got.contact || (std::abs(got.distance - ref.distance) <= tol &&
+                                                        got.inside == ref.inside && got.triangle == ref.triangle));
+    if (!same && wrong++ < 5)
+      ADD_FAILURE() << "push " << push << " step " << step << ": contact " << got.contact << " vs " << ref.contact
+                    << ", distance " << got.distance << " vs " << ref.distance << ", triangle " << got.triangle
+                    << " vs " << ref.triangle;
+  }
+};
+
 TEST(ClodDetector, ADeepPushIsAnsweredAsTheSignedBruteForce) {
   for (const char* name : {"elephant.off", "head.off", "mannequin-devil.off"}) {
     SCOPED_TRACE(name);
@@ -1029,7 +1053,7 @@ TEST(ClodDetector, ADeepPushIsAnsweredAsTheSignedBruteForce) {
     const ClodDetector det(mesh, set, FastLevel::Grid, r);
     std::mt19937_64 rng(29);
     std::uniform_int_distribution<std::size_t> pick(0, mesh->size() - 1);
-    int wrong = 0, deep = 0, unentered = 0;
+    SignedStreamCheck check{r, tol};
     for (int push = 0; push < 24; ++push) {
       const std::size_t t = pick(rng);
       const Vec3 n = mesh->normals[t];
@@ -1040,28 +1064,46 @@ TEST(ClodDetector, ADeepPushIsAnsweredAsTheSignedBruteForce) {
         const Vec3 p = c - (step * r / 8.0) * n;
         ContactResult got;
         det.query(p, r, DetectionMode::Exact, got, &cache);
-        const ContactResult ref = bruteForceSignedQuery(*mesh, p, r);
-        // The stream entered within r, so it follows the push: the signed reference answers as such a stream (contact,
-        // depth r + distance) wherever the centre is behind the surface. Except where the reference calls a centre
-        // behind the surface that the stream never entered (a free point farther than r from the surface, whose
-        // nearest feature's pseudo-normal points away: mannequin-devil's overlapping parts): not this test's matter.
-        if (!got.contact && ref.contact && ref.inside && ref.distance > r) {
-          ++unentered;
-          continue;
-        }
-        if (got.contact && got.inside && got.distance > r) ++deep;
-        const bool same = got.contact == ref.contact &&
-                          (!got.contact || (std::abs(got.distance - ref.distance) <= tol && got.inside == ref.inside &&
-                                            got.triangle == ref.triangle));
-        if (!same && wrong++ < 5)
-          ADD_FAILURE() << "push " << push << " step " << step << ": contact " << got.contact << " vs " << ref.contact
-                        << ", distance " << got.distance << " vs " << ref.distance << ", triangle " << got.triangle
-                        << " vs " << ref.triangle;
+        check(got, bruteForceSignedQuery(*mesh, p, r), push, step);
       }
     }
-    EXPECT_EQ(wrong, 0);
-    EXPECT_GT(deep, 100) << "the pushes must reach beyond r";
-    EXPECT_LT(unentered, 50);
+    EXPECT_EQ(check.wrong, 0);
+    EXPECT_GT(check.deep, 100) << "the pushes must reach beyond r";
+    EXPECT_LT(check.unentered, 50);
+  }
+}
+
+// A push followed at speed: the stream enters, then slides 2.7 r a query (2 m/s at 1 kHz on a 15 cm model) at 1.5 r
+// deep, so the last answer's triangle lies farther than the grid cell of the next centre lists and the nearest is
+// looked for in that cell first (deepFromCell's bounded scan), else in the tree. Every answer is the signed brute
+// force's, as in the slow pushes above.
+TEST(ClodDetector, AFastPushIsAnsweredAsTheSignedBruteForce) {
+  for (const char* name : {"elephant.off", "head.off", "mannequin-devil.off"}) {
+    SCOPED_TRACE(name);
+    const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
+    const auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
+    const double r = 0.005, tol = 1e-12 * mesh->diagonal();
+    const ClodDetector det(mesh, set, FastLevel::Grid, r);
+    std::mt19937_64 rng(31);
+    std::uniform_int_distribution<std::size_t> pick(0, mesh->size() - 1);
+    SignedStreamCheck check{r, tol};
+    for (int push = 0; push < 48; ++push) {
+      const std::size_t t = pick(rng);
+      const Vec3 n = mesh->normals[t];
+      if (!(n.squaredNorm() > 0.5)) continue;
+      const Vec3 u = n.unitOrthogonal(), c = mesh->toModel(mesh->centroid(t));
+      QueryCache cache;
+      for (int step = -4; step <= 16; ++step) {
+        const Vec3 in = c - 1.5 * r * n;
+        const Vec3 p = step <= 0 ? Vec3(c + (step + 4) / 4.0 * (in - c)) : Vec3(in + 2.7 * r * step * u);
+        ContactResult got;
+        det.query(p, r, DetectionMode::Exact, got, &cache);
+        check(got, bruteForceSignedQuery(*mesh, p, r), push, step);
+      }
+    }
+    EXPECT_EQ(check.wrong, 0);
+    EXPECT_GT(check.deep, 100) << "the pushes must stay beyond r";
+    EXPECT_LT(check.unentered, 200);
   }
 }
 
