@@ -821,7 +821,9 @@ bool ClodDetector::deepFromCell(const Vec3& p, DetectionMode mode, Best& best, c
   // The best so far lies beyond what the cell lists (a fast push: the last answer's triangle is far behind). The
   // nearest may still lie within it: a scan bounded there finds it when it does (every triangle nearer than what it
   // finds is listed), and the tree, from the best so far, answers otherwise.
-  // The cell's slab proves when nothing it lists lies within that reach (p deep behind the surface): then the tree.
+  // The scan is skipped where it would rarely find anything: p farther than that reach from the cell's slab, deep behind
+  // the surface. A guess only (the slab holds the candidates' parts within radius() of the cell, not all within that
+  // reach of p), so it decides no answer: the tree's is exact either way.
   if (!(listed > 0.0) || grid_.noContact(*ref, rel, listed)) return false;
   const Best far = best;
   best.d2 = listed * listed;
