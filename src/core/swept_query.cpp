@@ -173,6 +173,64 @@ struct SweptSphereQuery::Best {
   std::uint32_t tested = 0;
   double reach = 0.0;  // R with the rounding slack of planeBoundMisses
   double invdd = 0.0;  // 1 / |d|^2 of the sweep (0 for a zero-length one)
+  // A plane the sweep starts above (unit normal n, offset: heights n . x - offset): the hint's tangent plane, made on
+  // first use (a sweep that tests nothing beyond its bounds pays nothing for it). See below().
+  const TriangleMesh* mesh = nullptr;
+  std::int32_t hint = -1;
+  Vec3 from = Vec3::Zero(), motion = Vec3::Zero();
+  double radius = 0.0;
+  int plane = 0;  // 0: not made yet, 1: made, -1: none (the hint too far, or touched by the centre)
+  Vec3 n = Vec3::Zero();
+  double offset = 0.0, startHeight = 0.0, climb = 0.0;  // the centre's height at a, and its change over the sweep
+  /** The plane through the hint's point nearest the sweep's start, facing it, when that point lies within 2 R. */
+  bool makePlane() {
+    plane = -1;
+    const std::size_t h = static_cast<std::size_t>(hint);
+    const Vec3 w = from - closestPointOnTriangle(from, mesh->vertex(h, 0), mesh->vertex(h, 1), mesh->vertex(h, 2));
+    const double len = w.norm();
+    if (!(len > 0.0 && len < 2.0 * radius)) return false;
+    plane = 1;
+    n = w / len;
+    offset = n.dot(from - w);
+    startHeight = n.dot(from) - offset;
+    climb = n.dot(motion);
+    return true;
+  }
+  /**
+   * Whether a triangle with these corners lies wholly below the plane by more than reach under the sweep up to the
+   * best time so far: then every point of it is farther than R from every centre that can still win (a height
+   * difference bounds the distance), and it needs no test. A sphere sliding over a locally convex surface keeps its
+   * last contact's tangent plane under it, with every neighbouring triangle below: their own planes, tilted towards
+   * the centre, cannot tell that.
+   */
+  bool below(const double* corners) {
+    if (hint < 0 || plane < 0 || (plane == 0 && !makePlane())) return false;
+    const double lowest = startHeight + std::min(0.0, std::min(1.0, toi) * climb);
+    double top = -std::numeric_limits<double>::infinity();
+    for (int k = 0; k < 3; ++k)
+      top = std::max(top, n.x() * corners[3 * k] + n.y() * corners[3 * k + 1] + n.z() * corners[3 * k + 2] - offset);
+    return top < lowest - reach;
+  }
+  /**
+   * The same for everything below a node of the tree over the mesh, from its slab and ball (NodeSlab: every vertex
+   * within thick of the plane through centre with unit normal m and within radius of centre): the highest point of
+   * that ball and slab along n is radius above the centre when the ball's top lies in the slab, else where the
+   * slab's face meets the ball (|n . m| thick + |n - (n . m) m| sqrt(radius^2 - thick^2)).
+   */
+  bool below(const NodeSlab& slab) {
+    if (hint < 0 || plane < 0 || !(slab.radius < std::numeric_limits<double>::infinity()) ||
+        (plane == 0 && !makePlane()))
+      return false;
+    const double lowest = startHeight + std::min(0.0, std::min(1.0, toi) * climb);
+    const double along = n.dot(slab.normal), across = (n - along * slab.normal).norm();
+    const double rise =
+        std::abs(along) * slab.radius <= slab.thick
+            ? slab.radius
+            : std::abs(along) * slab.thick +
+                  across * std::sqrt(std::max(0.0, slab.radius * slab.radius - slab.thick * slab.thick));
+    // The slab's normal is unit to rounding: the rise gets a relative margin, the centre's height its own.
+    return n.dot(slab.centre) - offset + rise * (1.0 + 1e-9) + 1e-9 * slab.thick < lowest - reach;
+  }
   // 256 slots: a slide of a few radii over a fine mesh meets a few hundred triangles; with fewer, most of
   // them came back for a second test (refined_elephant at 2 m/s: 476 tests of 211 triangles with 64 slots).
   static constexpr std::uint32_t kSeen = 256;
@@ -323,6 +381,7 @@ void SweptSphereQuery::testRecord(std::uint32_t t, const Vec3& a, const Vec3& d,
   const Vec3 c(rec[0], rec[1], rec[2]);
   const double dd = d.squaredNorm();
   if (planeBoundMisses(c, rec[3], Vec3(rec[4], rec[5], rec[6]), rec[7], a, d, best.reach, best.toi)) return;
+  if (best.below(rec + 8)) return;
   double toi;
   bool start = false;
   if (exactSweep(a, d, dd, R, Vec3(rec[8], rec[9], rec[10]), Vec3(rec[11], rec[12], rec[13]),
@@ -341,9 +400,16 @@ void SweptSphereQuery::sweep(const Vec3& a, const Vec3& b, double r, SweptContac
   best.reach = R * (1.0 + 1e-9) + 1e-14 * magnitudeOf(la, lb);
   const double dd = d.squaredNorm();
   best.invdd = dd > 0.0 ? 1.0 / dd : 0.0;
-  // A likely first contact tested first: its time bounds the search from the start.
-  if (hint >= 0 && static_cast<std::size_t>(hint) < mesh_->size())
+  // A likely first contact tested first: its time bounds the search from the start. Its tangent plane lets the search
+  // pass over the triangles wholly below it (Best::below).
+  if (hint >= 0 && static_cast<std::size_t>(hint) < mesh_->size()) {
     testTriangle(static_cast<std::uint32_t>(hint), la, d, R, best);
+    best.mesh = mesh_.get();
+    best.hint = hint;
+    best.from = la;
+    best.motion = d;
+    best.radius = R;
+  }
   // Blocked at 0 by the hint: it is the answer (bruteForceSweep's tie rule), nothing comes earlier. Otherwise the
   // grid serves a sweep of up to a few thousand cells; a longer one takes the tree, which skips empty space, and so
   // does one that starts in a crowded cell (triangles far smaller than r, as ClodDetector's point query): there the
@@ -582,8 +648,11 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
       continue;
     }
     const std::uint32_t left = item.node + 1, right = node.first;
-    const double tl = enterNode(nodes[left], slabs[left], a, d, grow, best.reach, best.toi),
-                 tr = enterNode(nodes[right], slabs[right], a, d, grow, best.reach, best.toi);
+    const double tl = best.below(slabs[left]) ? kNever
+                                              : enterNode(nodes[left], slabs[left], a, d, grow, best.reach, best.toi),
+                 tr = best.below(slabs[right])
+                          ? kNever
+                          : enterNode(nodes[right], slabs[right], a, d, grow, best.reach, best.toi);
     // The nearer child on top of the stack.
     if (tl <= tr) {
       if (tr != kNever) stack[top++] = {right, tr};
