@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <functional>
 #include <limits>
 #include <map>
 #include <new>
@@ -1044,67 +1045,57 @@ struct SignedStreamCheck {
   }
 };
 
-TEST(ClodDetector, ADeepPushIsAnsweredAsTheSignedBruteForce) {
+// Pushes into three shared meshes, each from the centroid of a random triangle along steps `at(centroid, inward
+// normal, step)`, one QueryCache a push, every answer checked with SignedStreamCheck.
+void checkFollowedPushes(std::uint64_t seed, int pushes, int firstStep, int lastStep,
+                         const std::function<Vec3(const Vec3&, const Vec3&, int, double)>& at, int minDeep,
+                         int maxUnentered) {
   for (const char* name : {"elephant.off", "head.off", "mannequin-devil.off"}) {
     SCOPED_TRACE(name);
     const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
     const auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
     const double r = 0.005, tol = 1e-12 * mesh->diagonal();
     const ClodDetector det(mesh, set, FastLevel::Grid, r);
-    std::mt19937_64 rng(29);
+    std::mt19937_64 rng(seed);
     std::uniform_int_distribution<std::size_t> pick(0, mesh->size() - 1);
     SignedStreamCheck check{r, tol};
-    for (int push = 0; push < 24; ++push) {
+    for (int push = 0; push < pushes; ++push) {
       const std::size_t t = pick(rng);
       const Vec3 n = mesh->normals[t];
       if (!(n.squaredNorm() > 0.5)) continue;
       const Vec3 c = mesh->toModel(mesh->centroid(t));
       QueryCache cache;
-      for (int step = -16; step <= 48; ++step) {
-        const Vec3 p = c - (step * r / 8.0) * n;
+      for (int step = firstStep; step <= lastStep; ++step) {
+        const Vec3 p = at(c, -n, step, r);
         ContactResult got;
         det.query(p, r, DetectionMode::Exact, got, &cache);
         check(got, bruteForceSignedQuery(*mesh, p, r), push, step);
       }
     }
     EXPECT_EQ(check.wrong, 0);
-    EXPECT_GT(check.deep, 100) << "the pushes must reach beyond r";
-    EXPECT_LT(check.unentered, 50);
+    EXPECT_GT(check.deep, minDeep) << "the pushes must reach beyond r";
+    EXPECT_LT(check.unentered, maxUnentered);
   }
+}
+
+// Straight in along the inward normal, r / 8 a query, from 2 r outside to 6 r deep.
+TEST(ClodDetector, ADeepPushIsAnsweredAsTheSignedBruteForce) {
+  checkFollowedPushes(
+      29, 24, -16, 48,
+      [](const Vec3& c, const Vec3& in, int step, double r) { return Vec3(c + (step * r / 8.0) * in); }, 100, 50);
 }
 
 // A push followed at speed: the stream enters, then slides 2.7 r a query (2 m/s at 1 kHz on a 15 cm model) at 1.5 r
 // deep, so the last answer's triangle lies farther than the grid cell of the next centre lists and the nearest is
-// looked for in that cell first (deepFromCell's bounded scan), else in the tree. Every answer is the signed brute
-// force's, as in the slow pushes above.
+// looked for in that cell first (deepFromCell's bounded scan), else in the tree.
 TEST(ClodDetector, AFastPushIsAnsweredAsTheSignedBruteForce) {
-  for (const char* name : {"elephant.off", "head.off", "mannequin-devil.off"}) {
-    SCOPED_TRACE(name);
-    const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
-    const auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.02));
-    const double r = 0.005, tol = 1e-12 * mesh->diagonal();
-    const ClodDetector det(mesh, set, FastLevel::Grid, r);
-    std::mt19937_64 rng(31);
-    std::uniform_int_distribution<std::size_t> pick(0, mesh->size() - 1);
-    SignedStreamCheck check{r, tol};
-    for (int push = 0; push < 48; ++push) {
-      const std::size_t t = pick(rng);
-      const Vec3 n = mesh->normals[t];
-      if (!(n.squaredNorm() > 0.5)) continue;
-      const Vec3 u = n.unitOrthogonal(), c = mesh->toModel(mesh->centroid(t));
-      QueryCache cache;
-      for (int step = -4; step <= 16; ++step) {
-        const Vec3 in = c - 1.5 * r * n;
-        const Vec3 p = step <= 0 ? Vec3(c + (step + 4) / 4.0 * (in - c)) : Vec3(in + 2.7 * r * step * u);
-        ContactResult got;
-        det.query(p, r, DetectionMode::Exact, got, &cache);
-        check(got, bruteForceSignedQuery(*mesh, p, r), push, step);
-      }
-    }
-    EXPECT_EQ(check.wrong, 0);
-    EXPECT_GT(check.deep, 100) << "the pushes must stay beyond r";
-    EXPECT_LT(check.unentered, 200);
-  }
+  checkFollowedPushes(
+      31, 48, -4, 16,
+      [](const Vec3& c, const Vec3& in, int step, double r) {
+        const Vec3 deep = c + 1.5 * r * in;
+        return step <= 0 ? Vec3(c + (step + 4) / 4.0 * (deep - c)) : Vec3(deep + 2.7 * r * step * in.unitOrthogonal());
+      },
+      100, 200);
 }
 
 TEST(ClodDetector, AFollowedPushEndsOutside) {
