@@ -784,7 +784,13 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
     if (tested != kNone) testGridTriangle(tested, p, mode, best);
     // A push a little deeper than the grid radius (the usual one: a stylus pressed in) is answered by the cell of p,
     // which the search within r has just read, when the last answer's triangle lies within what the cell lists.
-    if (best.found && deepFromCell(p, mode, best, cache, tested)) return;
+    // The last answer bounds how near the nearest can be now (distance is 1-Lipschitz): 0 when unknown.
+    double atLeast = 0.0;
+    if (cache != nullptr && cache->owner == id_) {
+      const double bound = cache->lastDistance - (p - cache->lastDistanceAt).norm();
+      if (bound > 0.0) atLeast = bound;
+    }
+    if (best.found && deepFromCell(p, mode, best, cache, tested, atLeast)) return;
     preciseMeshTree(p, mode, best, tested);
     return;
   }
@@ -801,7 +807,7 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
 }
 
 bool ClodDetector::deepFromCell(const Vec3& p, DetectionMode mode, Best& best, const QueryCache* cache,
-                                std::uint32_t skip) const {
+                                std::uint32_t skip, double atLeast) const {
   if (grid_.empty()) return false;
   const std::uint64_t key = grid_.keyOf(p);
   const CellGrid::CellRef* ref = cache != nullptr && cache->owner == id_ && cache->key == key
@@ -821,10 +827,11 @@ bool ClodDetector::deepFromCell(const Vec3& p, DetectionMode mode, Best& best, c
   // The best so far lies beyond what the cell lists (a fast push: the last answer's triangle is far behind). The
   // nearest may still lie within it: a scan bounded there finds it when it does (every triangle nearer than what it
   // finds is listed), and the tree, from the best so far, answers otherwise.
-  // The scan is skipped where it would rarely find anything: p farther than that reach from the cell's slab, deep behind
-  // the surface. A guess only (the slab holds the candidates' parts within radius() of the cell, not all within that
-  // reach of p), so it decides no answer: the tree's is exact either way.
-  if (!(listed > 0.0) || grid_.noContact(*ref, rel, listed)) return false;
+  // The scan is skipped where it would rarely find anything: p farther than that reach from the cell's slab, deep
+  // behind the surface. A guess only (the slab holds the candidates' parts within radius() of the cell, not all within
+  // that reach of p), so it decides no answer: the tree's is exact either way. Nor where the last answer shows the
+  // nearest lies beyond that reach (a slow push deep inside).
+  if (!(listed > 0.0) || atLeast > listed || grid_.noContact(*ref, rel, listed)) return false;
   const Best far = best;
   best.d2 = listed * listed;
   best.reach = listed;
@@ -842,7 +849,10 @@ inline void ClodDetector::answer(const Vec3& p, double r, const Best& best, Cont
   out.spheresHit = best.hits;
   out.trianglesTested = best.tested;
   if (!best.found) {
-    if (cache != nullptr) cache->lastInside = false;
+    if (cache != nullptr) {
+      cache->lastInside = false;
+      cache->lastDistance = std::numeric_limits<double>::quiet_NaN();
+    }
     return;
   }
   out.point = best.point;
@@ -859,6 +869,7 @@ inline void ClodDetector::answer(const Vec3& p, double r, const Best& best, Cont
     out.spheresHit = best.hits;
     out.trianglesTested = best.tested;
     cache->lastInside = false;
+    cache->lastDistance = std::numeric_limits<double>::quiet_NaN();
     return;
   }
   out.contact = true;
@@ -868,6 +879,8 @@ inline void ClodDetector::answer(const Vec3& p, double r, const Best& best, Cont
   if (cache != nullptr) {
     cache->lastTriangle = out.triangle;
     cache->lastInside = out.inside;
+    cache->lastDistance = out.distance;
+    cache->lastDistanceAt = p;
   }
 }
 

@@ -42,6 +42,11 @@ struct QueryCache {
   /// The last answer was a contact with the centre inside: the next query follows it beyond the radius.
   /// Kept across detectors (a level swap of the same part keeps the push); an invalid query leaves it.
   bool lastInside = false;
+  /// The last contact's distance from its centre to the nearest triangle, and that centre (local frame): the nearest
+  /// triangle of a later centre p is at least lastDistance - |p - lastDistanceAt| away, which tells a followed push
+  /// where it need not look (ClodDetector's deep search). NaN when the last answer was no contact.
+  double lastDistance = std::numeric_limits<double>::quiet_NaN();
+  Vec3 lastDistanceAt = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
 
   /// The neighbourhood of a slow stream (exact mode on the grid): while the pointer moves less than a sixteenth of
   /// its radius a query, the query that scans a cell also keeps every triangle of that cell's list within the radius
@@ -233,7 +238,8 @@ class ClodDetector {
   void searchDeep(const Vec3& p, double r, DetectionMode mode, Best& best, QueryCache* cache) const;
   // searchDeep's shortcut: the nearest triangle from the grid cell of p, when the best so far (found) lies within what
   // the cell lists; false (best untouched) otherwise. skip: a triangle already tested for p.
-  bool deepFromCell(const Vec3& p, DetectionMode mode, Best& best, const QueryCache* cache, std::uint32_t skip) const;
+  bool deepFromCell(const Vec3& p, DetectionMode mode, Best& best, const QueryCache* cache, std::uint32_t skip,
+                    double atLeast) const;
   void answer(const Vec3& p, double r, const Best& best, ContactResult& out, QueryCache* cache) const;
 
   std::shared_ptr<const TriangleMesh> mesh_;
