@@ -44,7 +44,8 @@ struct QueryCache {
   bool lastInside = false;
   /// The last contact's distance from its centre to the nearest triangle, and that centre (local frame): the nearest
   /// triangle of a later centre p is at least lastDistance - |p - lastDistanceAt| away, which tells a followed push
-  /// where it need not look (ClodDetector's deep search). NaN when the last answer was no contact.
+  /// where it need not look (ClodDetector's deep search). NaN when the last answer was no contact. A bound on the
+  /// work only: after a swap to another mesh it may be wrong, and then costs a walk of the tree, never an answer.
   double lastDistance = std::numeric_limits<double>::quiet_NaN();
   Vec3 lastDistanceAt = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
 
