@@ -783,14 +783,8 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
     const std::uint32_t tested = lastContact(cache);  // passed over by the walk (see preciseGrid)
     if (tested != kNone) testGridTriangle(tested, p, mode, best);
     // A push a little deeper than the grid radius (the usual one: a stylus pressed in) is answered by the cell of p,
-    // which the search within r has just read, when the last answer's triangle lies within what the cell lists.
-    // The last answer bounds how near the nearest can be now (distance is 1-Lipschitz): 0 when unknown.
-    double atLeast = 0.0;
-    if (cache != nullptr && cache->owner == id_) {
-      const double bound = cache->lastDistance - (p - cache->lastDistanceAt).norm();
-      if (bound > 0.0) atLeast = bound;
-    }
-    if (best.found && deepFromCell(p, mode, best, cache, tested, atLeast)) return;
+    // which the search within r has just read, when the nearest lies within what the cell lists.
+    if (best.found && deepFromCell(p, mode, best, cache, tested)) return;
     preciseMeshTree(p, mode, best, tested);
     return;
   }
@@ -807,7 +801,7 @@ void ClodDetector::searchDeep(const Vec3& p, double r, DetectionMode mode, Best&
 }
 
 bool ClodDetector::deepFromCell(const Vec3& p, DetectionMode mode, Best& best, const QueryCache* cache,
-                                std::uint32_t skip, double atLeast) const {
+                                std::uint32_t skip) const {
   if (grid_.empty()) return false;
   const std::uint64_t key = grid_.keyOf(p);
   const CellGrid::CellRef* ref = cache != nullptr && cache->owner == id_ && cache->key == key
@@ -829,9 +823,12 @@ bool ClodDetector::deepFromCell(const Vec3& p, DetectionMode mode, Best& best, c
   // finds is listed), and the tree, from the best so far, answers otherwise.
   // The scan is skipped where it would rarely find anything: p farther than that reach from the cell's slab, deep
   // behind the surface. A guess only (the slab holds the candidates' parts within radius() of the cell, not all within
-  // that reach of p), so it decides no answer: the tree's is exact either way. Nor where the last answer shows the
-  // nearest lies beyond that reach (a slow push deep inside).
-  if (!(listed > 0.0) || atLeast > listed || grid_.noContact(*ref, rel, listed)) return false;
+  // that reach of p), so it decides no answer: the tree's is exact either way.
+  if (!(listed > 0.0) || grid_.noContact(*ref, rel, listed)) return false;
+  // Nor where the last answer shows the nearest lies beyond that reach (a slow push deep inside): distance is
+  // 1-Lipschitz, so the nearest is at least the last distance less the step away (NaN when unknown: no skip).
+  if (cache != nullptr && cache->owner == id_ && cache->lastDistance - (p - cache->lastDistanceAt).norm() > listed)
+    return false;
   const Best far = best;
   best.d2 = listed * listed;
   best.reach = listed;

@@ -238,9 +238,9 @@ class ClodDetector {
   void search(const Vec3& p, double radius, DetectionMode mode, Best& best, QueryCache* cache) const;
   void searchDeep(const Vec3& p, double r, DetectionMode mode, Best& best, QueryCache* cache) const;
   // searchDeep's shortcut: the nearest triangle from the grid cell of p, when the best so far (found) lies within what
-  // the cell lists; false (best untouched) otherwise. skip: a triangle already tested for p.
-  bool deepFromCell(const Vec3& p, DetectionMode mode, Best& best, const QueryCache* cache, std::uint32_t skip,
-                    double atLeast) const;
+  // the cell lists, or a scan bounded to that reach finds one; false (best as it was) otherwise. skip: a triangle
+  // already tested for p.
+  bool deepFromCell(const Vec3& p, DetectionMode mode, Best& best, const QueryCache* cache, std::uint32_t skip) const;
   void answer(const Vec3& p, double r, const Best& best, ContactResult& out, QueryCache* cache) const;
 
   std::shared_ptr<const TriangleMesh> mesh_;
