@@ -196,6 +196,10 @@ struct SweptSphereQuery::Best {
     climb = n.dot(motion);
     return true;
   }
+  /** Whether there is a plane: the hint's, made now when not yet tried. */
+  bool planeReady() { return hint >= 0 && plane >= 0 && (plane == 1 || makePlane()); }
+  /** The height under the plane that lies farther than reach below every centre up to the best time so far. */
+  double clearance() const { return startHeight + std::min(0.0, std::min(1.0, toi) * climb) - reach; }
   /**
    * Whether a triangle with these corners lies wholly below the plane by more than reach under the sweep up to the
    * best time so far: then every point of it is farther than R from every centre that can still win (a height
@@ -204,12 +208,11 @@ struct SweptSphereQuery::Best {
    * the centre, cannot tell that.
    */
   bool below(const double* corners) {
-    if (hint < 0 || plane < 0 || (plane == 0 && !makePlane())) return false;
-    const double lowest = startHeight + std::min(0.0, std::min(1.0, toi) * climb);
+    if (!planeReady()) return false;
     double top = -std::numeric_limits<double>::infinity();
     for (int k = 0; k < 3; ++k)
       top = std::max(top, n.x() * corners[3 * k] + n.y() * corners[3 * k + 1] + n.z() * corners[3 * k + 2] - offset);
-    return top < lowest - reach;
+    return top < clearance();
   }
   /**
    * The same for everything below a node of the tree over the mesh, from its slab and ball (NodeSlab: every vertex
@@ -218,10 +221,7 @@ struct SweptSphereQuery::Best {
    * slab's face meets the ball (|n . m| thick + |n - (n . m) m| sqrt(radius^2 - thick^2)).
    */
   bool below(const NodeSlab& slab) {
-    if (hint < 0 || plane < 0 || !(slab.radius < std::numeric_limits<double>::infinity()) ||
-        (plane == 0 && !makePlane()))
-      return false;
-    const double lowest = startHeight + std::min(0.0, std::min(1.0, toi) * climb);
+    if (!(slab.radius < std::numeric_limits<double>::infinity()) || !planeReady()) return false;
     const double along = n.dot(slab.normal), across = (n - along * slab.normal).norm();
     const double rise =
         std::abs(along) * slab.radius <= slab.thick
@@ -229,7 +229,7 @@ struct SweptSphereQuery::Best {
             : std::abs(along) * slab.thick +
                   across * std::sqrt(std::max(0.0, slab.radius * slab.radius - slab.thick * slab.thick));
     // The slab's normal is unit to rounding: the rise gets a relative margin, the centre's height its own.
-    return n.dot(slab.centre) - offset + rise * (1.0 + 1e-9) + 1e-9 * slab.thick < lowest - reach;
+    return n.dot(slab.centre) - offset + rise * (1.0 + 1e-9) + 1e-9 * slab.thick < clearance();
   }
   // 256 slots: a slide of a few radii over a fine mesh meets a few hundred triangles; with fewer, most of
   // them came back for a second test (refined_elephant at 2 m/s: 476 tests of 211 triangles with 64 slots).
