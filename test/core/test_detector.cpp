@@ -1015,12 +1015,6 @@ TEST(ClodDetector, PushingInKeepsTheForceGrowing) {
   expectMonotonePush(mesh, det, pushes[0], r, DetectionMode::Paper);
 }
 
-// Leaving again: a stream that was deep inside and jumps outside (beyond r) answers no contact, and a later
-// deep pose without passing through the surface is not followed.
-// A stream pushed from outside to 6 r behind the surface along the inward normal of random triangles, r / 8 a step:
-// every answer (contact, distance, inside, triangle) is the signed brute force's. The first steps beyond r are
-// answered from the grid cell of the centre (listedWithin), the deeper ones by the tree over the mesh: both are
-// checked against every triangle.
 // Compares a followed stream's answers with the signed brute force (bruteForceSignedQuery): the stream entered within
 // r, so it follows the push, and the signed reference answers as such a stream (contact, depth r + distance) wherever
 // the centre is behind the surface. Except where the reference calls a centre behind the surface that the stream
@@ -1078,7 +1072,10 @@ void checkFollowedPushes(std::uint64_t seed, int pushes, int firstStep, int last
   }
 }
 
-// Straight in along the inward normal, r / 8 a query, from 2 r outside to 6 r deep.
+// A stream pushed from outside to 6 r behind the surface along the inward normal of random triangles, r / 8 a step:
+// every answer (contact, distance, inside, triangle) is the signed brute force's. The first steps beyond r are
+// answered from the grid cell of the centre (listedWithin), the deeper ones by the tree over the mesh: both are
+// checked against every triangle.
 TEST(ClodDetector, ADeepPushIsAnsweredAsTheSignedBruteForce) {
   checkFollowedPushes(
       29, 24, -16, 48,
@@ -1098,6 +1095,8 @@ TEST(ClodDetector, AFastPushIsAnsweredAsTheSignedBruteForce) {
       100, 200);
 }
 
+// Leaving again: a stream that was deep inside and jumps outside (beyond r) answers no contact, and a later
+// deep pose without passing through the surface is not followed.
 TEST(ClodDetector, AFollowedPushEndsOutside) {
   const auto mesh = std::make_shared<const TriangleMesh>(loadMesh(clod_test::testData("box_4x2x1.obj")));
   const auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.1));
