@@ -84,13 +84,13 @@ struct Builder {
     auto at = [&](int k, int s) { return first + static_cast<std::uint32_t>(k * segments + (s % segments)); };
     for (int k = 0; k < rings; ++k)
       for (int s = 0; s < segments; ++s) {
-        tri(at(k, s), at(k + 1, s), at(k + 1, s + 1));
-        tri(at(k, s), at(k + 1, s + 1), at(k, s + 1));
+        tri(at(k, s), at(k + 1, s + 1), at(k + 1, s));
+        tri(at(k, s), at(k, s + 1), at(k + 1, s + 1));
       }
     const std::uint32_t ca = add(a), cb = add(b);
     for (int s = 0; s < segments; ++s) {
-      tri(ca, at(0, s + 1), at(0, s));
-      tri(cb, at(rings, s), at(rings, s + 1));
+      tri(ca, at(0, s), at(0, s + 1));
+      tri(cb, at(rings, s + 1), at(rings, s));
     }
   }
 
