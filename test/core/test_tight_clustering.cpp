@@ -81,8 +81,9 @@ TEST(TightClustering, CoverageAndOneSpherePerTriangleOnEverySharedMesh) {
       const auto problems = coverageProblems(*mesh, set);
       EXPECT_TRUE(problems.empty()) << clod_test::join(problems);
       EXPECT_EQ(set.stats.spheres, set.size());
-      // Each triangle within the piece edge is listed by exactly one sphere (a partition of the surface); a longer
-      // one by at least one, at most by one per piece.
+      // Each triangle is listed by at least one sphere. One within the piece edge is listed by exactly one unless it
+      // lies in a thin patch, whose items are halved further (then coverageProblems checks the union of its spheres);
+      // at d = 0 no patch is thin (no sphere of one piece passes the bound) and the partition is exact.
       const double pieceEdge = TightClustering::kDefaultPieceEdge * mesh->diagonal();
       std::vector<std::size_t> listed(mesh->size(), 0), pieces(mesh->size(), 0);
       for (std::uint32_t t : set.triangles) ++listed[t];
@@ -106,18 +107,20 @@ TEST(TightClustering, CoverageAndOneSpherePerTriangleOnEverySharedMesh) {
         }
         allPieces += pieces[t];
         ASSERT_GE(listed[t], 1u) << "triangle " << t;
-        ASSERT_LE(listed[t], pieces[t]) << "triangle " << t;
+        if (d == 0.0) {
+          ASSERT_LE(listed[t], pieces[t]) << "triangle " << t;
+        }
       }
       if (d == 0.0) {
         EXPECT_EQ(set.size(), allPieces) << "d = 0: one sphere per piece (per triangle within the piece edge)";
       }
-      // Radii stay tight: a sphere listing only whole triangles has some listed vertex on it; one listing a split
-      // triangle reaches no farther than its triangles' vertices.
+      // Radii stay tight: a sphere listing only triangles listed once and not split has some listed vertex on it; one
+      // listing a split triangle reaches no farther than its triangles' vertices.
       for (std::size_t i = 0; i < set.size(); ++i) {
         double far = 0.0;
         bool split = false;
         for (const std::uint32_t* t = set.begin(i); t != set.end(i); ++t) {
-          split = split || pieces[*t] > 1;
+          split = split || pieces[*t] > 1 || listed[*t] > 1;
           for (int v = 0; v < 3; ++v) far = std::max(far, (mesh->vertex(*t, v) - set.centres[i]).norm());
         }
         if (split) {
@@ -296,6 +299,29 @@ TEST(TightClustering, SpheresInThinPartsScoreTheVolumeOutsideOnEverySide) {
   }
 }
 
+TEST(TightClustering, ThinPlatePatchesApproachTheDensestCovering) {
+  // A plate of thickness t much less than R: each sphere meets a face in a disc of radius at most R, so the discs
+  // cover the face, sum pi R_i^2 >= A, and (power means) sum R_i^3 >= N (A / (pi N))^(3/2): the least volume any N
+  // spheres covering it can have. Equal discs on a hexagonal lattice need 1.209 A, about 1.33 times that bound in
+  // volume; square patches 1.57 A (1.97 times), 2:1 rectangles 1.96 A (2.76 times). Thin patches are settled towards
+  // the hexagons (not reached: the plate's edges, the pieces). Measured: 2.00 to 2.11 times the bound; the tree's
+  // patches as cut (before settling) 2.59 to 3.03.
+  for (const auto& c : {std::make_pair(Vec3(0.3, 0.2, 0.002), 30), std::make_pair(Vec3(0.25, 0.25, 0.004), 20)}) {
+    const auto mesh = boxMesh(c.first, c.second, "plate");
+    const double area = 4.0 * c.first.x() * c.first.y();
+    const ClodBuilder builder(mesh, std::make_shared<PaperPlacement>(), makeClustering("tight"));
+    for (std::size_t n : {100u, 300u}) {
+      const ClodSphereSet set = builder.buildAtMost(n);
+      ASSERT_TRUE(coverageProblems(*mesh, set).empty());
+      const double count = static_cast<double>(set.size());
+      double volume = 0.0;
+      for (double r : set.radii) volume += r * r * r;
+      const double bound = count * std::pow(area / (M_PI * count), 1.5);
+      EXPECT_LT(volume / bound, 2.3) << set.size() << " spheres, half sizes " << c.first.transpose();
+    }
+  }
+}
+
 TEST(TightClustering, ExactDetectionEqualsBruteForce) {
   for (const std::string name : {"head.off", "mannequin-devil.off", "mesh_with_border.off"}) {
     const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
@@ -419,7 +445,8 @@ TEST(TightClustering, LabelsFollowTrianglesAndAreNumberedInOrder) {
 TEST(TightClustering, HandingOverShrinksSpheresAndGrowsNone) {
   // The same tree cut two ways: clusterMesh without lists gives the leaves as cut (the builder would fit each to
   // its triangles); the builder's set hands each triangle to the sphere it lies deepest in. Every sphere of the
-  // second is a leaf of the first (the same centre) with a radius no larger, and the spheres' total volume falls.
+  // second is a leaf of the first (the same centre) with a radius no larger, except the thin patches, which move
+  // (settled; none larger than the largest leaf), and the spheres' total volume falls.
   for (const std::string name : {"head.off", "elephant.off", "mannequin-devil.off"}) {
     const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
     std::vector<Vec3> points;
@@ -441,12 +468,21 @@ TEST(TightClustering, HandingOverShrinksSpheresAndGrowsNone) {
       ASSERT_LE(set.size(), k);
       double before = 0.0, after = 0.0;
       for (double r : leafRadius) before += r * r * r;
+      const double largest = *std::max_element(leafRadius.begin(), leafRadius.end());
+      std::size_t moved = 0;
       for (std::size_t i = 0; i < set.size(); ++i) {
-        const auto leaf = std::find(centres.begin(), centres.end(), set.centres[i]);
-        ASSERT_NE(leaf, centres.end()) << "sphere " << i << " is not a leaf of the cut";
-        EXPECT_LE(set.radii[i], leafRadius[leaf - centres.begin()] * (1 + 1e-12)) << "sphere " << i << " grew";
         after += set.radii[i] * set.radii[i] * set.radii[i];
+        const auto leaf = std::find(centres.begin(), centres.end(), set.centres[i]);
+        if (leaf == centres.end()) {
+          ++moved;
+          EXPECT_LE(set.radii[i], largest) << "sphere " << i << ", settled";
+          continue;
+        }
+        EXPECT_LE(set.radii[i], leafRadius[leaf - centres.begin()] * (1 + 1e-12)) << "sphere " << i << " grew";
       }
+      // Measured: head 0 of 1,235 and 248 settled; elephant 10 of 1,388 and 28 of 208 (its ears); mannequin-devil
+      // 120 of 1,526 and 42 of 299. Most spheres stay leaves.
+      EXPECT_LT(moved, set.size() / 2) << "settled";
       // Measured: 0.69 to 0.93 of the volume as cut (head at d = 0.02 the least changed).
       EXPECT_LT(after, 0.95 * before) << "the spheres' volume, handed over against as cut";
     }

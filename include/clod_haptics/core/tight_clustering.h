@@ -15,7 +15,7 @@ namespace clod_haptics {
  * each wrapped by a sphere centred deep inside the mesh, so that only a thin cap of it lies outside.
  *
  * Every triangle goes to exactly one cluster (the points that wrap it follow it), except a long one split into
- * pieces (below), which goes to every cluster holding one of its pieces. The clusters are the
+ * pieces or one in a thin patch (below), which goes to every cluster holding one of its pieces. The clusters are the
  * leaves of a binary tree that does not depend on d: a node's triangles are split in two at the mean of
  * their centroids along the one of the centroids' three principal axes that leaves the two children most compact
  * (the least largest distance of a centroid from its child's mean), so that a thin cylinder is cut into rings
@@ -46,6 +46,17 @@ namespace clod_haptics {
  * every bound above still holds. A triangle at the edge of a large patch that a neighbour already holds stops
  * setting the large sphere's radius: on the shared meshes at 150 and 500 spheres this lowers the outside volume
  * by 10 to 50% (bench/results/thin_tightness.md).
+ *
+ * Thin patches (when the builder asks for lists): a sphere whose centre lies less than 0.3 of its radius below the
+ * surface and whose corners lie near a plane (within a quarter of the radius, rms) is a patch of a thin part, its
+ * ball sticking out on both sides; its volume outside grows as R^3 while what it covers grows as R^2, so equal,
+ * compact patches (hexagons) hold the most for their volume, and the tree's halvings leave rectangles. Such patches
+ * are settled before the handing over: their items are halved further (continuing their triangle's halving),
+ * Lloyd's rounds on the surface move them between thin patches towards compact, alike patches (out of the tree's
+ * grid by a jitter fixed by each patch's index), each centre goes to its patch's smallest enclosing ball, and the
+ * pieces at a patch's rim are halved once more so that the handing over can give them to a neighbour. On plates
+ * this takes 28 to 32% off the spheres' volume at the same count; a triangle in a thin patch may then be listed by
+ * several spheres (one per piece at most), like a long one. Deterministic, independent of the threads.
  *
  * Every radius reaches every corner of every triangle or piece its sphere holds, so coverage holds whatever the
  * centres are: every point of every triangle lies in a sphere listing it (the invariant the detector relies on,

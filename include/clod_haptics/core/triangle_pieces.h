@@ -40,20 +40,41 @@ inline double longestEdge2(const TrianglePiece& t) {
 }
 
 /**
+ * \brief Calls visit(piece, halvings) for each piece of t, t itself being depth halvings below its triangle: a piece
+ * that split(piece) asks to halve is halved, up to maxDepth more halvings, depth first, the first half before the
+ * second. Further halvings of a piece continue the same halving of its triangle, so coveredByPieces finds them.
+ */
+template <class Split, class Visit>
+void halveWhile(const TrianglePiece& t, int maxDepth, int depth, Split&& split, Visit&& visit) {
+  if (maxDepth <= 0 || !split(t)) {
+    visit(t, depth);
+    return;
+  }
+  TrianglePiece first, second;
+  halvePiece(t, first, second);
+  halveWhile(first, maxDepth - 1, depth + 1, split, visit);
+  halveWhile(second, maxDepth - 1, depth + 1, split, visit);
+}
+
+/**
+ * \brief halveWhile with the pieces halved until no edge exceeds maxEdge (none when maxEdge is not positive).
+ */
+template <class Visit>
+void forEachPieceAt(const TrianglePiece& t, double maxEdge, int maxDepth, int depth, Visit&& visit) {
+  halveWhile(
+      t, maxDepth, depth,
+      [maxEdge](const TrianglePiece& piece) { return maxEdge > 0.0 && longestEdge2(piece) > maxEdge * maxEdge; },
+      visit);
+}
+
+/**
  * \brief Calls visit(piece) for each piece of t, halved until no edge exceeds maxEdge or maxDepth halvings,
  * depth first, the first half before the second. A triangle within maxEdge (or maxEdge not positive) is one
  * piece, itself.
  */
 template <class Visit>
 void forEachPiece(const TrianglePiece& t, double maxEdge, int maxDepth, Visit&& visit) {
-  if (maxDepth <= 0 || !(maxEdge > 0.0) || !(longestEdge2(t) > maxEdge * maxEdge)) {
-    visit(t);
-    return;
-  }
-  TrianglePiece first, second;
-  halvePiece(t, first, second);
-  forEachPiece(first, maxEdge, maxDepth - 1, visit);
-  forEachPiece(second, maxEdge, maxDepth - 1, visit);
+  forEachPieceAt(t, maxEdge, maxDepth, 0, [&](const TrianglePiece& piece, int) { visit(piece); });
 }
 
 /**
