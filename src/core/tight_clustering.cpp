@@ -518,6 +518,64 @@ inline double farthest2(const TrianglePiece& corners, const Vec3& c) {
   return std::max({(corners[0] - c).squaredNorm(), (corners[1] - c).squaredNorm(), (corners[2] - c).squaredNorm()});
 }
 
+// For each item, the spheres c with use(c) whose ball (centre[c], sqrt(reach2[c])) holds the item's centroid and
+// that accept(item, c) takes, found through a box tree over those balls; per thread, its own run of items
+// (threadsFor(n, 0, 4096)), as list[t][start[t][i - first] .. start[t][i - first + 1]) for item i of thread t's run
+// beginning at first. An item that want(item) declines gets an empty list. Empty lists for all when no ball is used.
+struct HolderLists {
+  unsigned threads = 1;
+  std::vector<std::vector<std::uint32_t>> list, start;
+};
+
+template <class Use, class Want, class Accept>
+HolderLists ballsHolding(const TriangleItems& items, const std::vector<Vec3>& centre, const std::vector<double>& reach2,
+                         Use&& use, Want&& want, Accept&& accept) {
+  const std::size_t n = items.centroid.size();
+  std::vector<Eigen::AlignedBox3d> balls;
+  std::vector<std::uint32_t> sphereOf;
+  for (std::size_t c = 0; c < centre.size(); ++c) {
+    if (!use(c)) continue;
+    const double r = std::sqrt(reach2[c]);
+    balls.emplace_back(centre[c] - Vec3::Constant(r), centre[c] + Vec3::Constant(r));
+    sphereOf.push_back(static_cast<std::uint32_t>(c));
+  }
+  HolderLists out;
+  out.threads = detail::threadsFor(n, 0, 4096);
+  out.list.resize(out.threads);
+  out.start.resize(out.threads);
+  std::vector<BoxNode> nodes;
+  std::vector<std::uint32_t> order;
+  const bool none = buildBoxTree(balls, 4, 0.0, nodes, order) == kNone;
+  for (std::uint32_t& j : order) j = sphereOf[j];
+  detail::runParallel(out.threads, [&](unsigned t) {
+    std::uint32_t stack[64];
+    std::vector<std::uint32_t>& list = out.list[t];
+    std::vector<std::uint32_t>& start = out.start[t];
+    for (std::size_t item = n * t / out.threads; item < n * (t + 1) / out.threads; ++item) {
+      start.push_back(static_cast<std::uint32_t>(list.size()));
+      if (none || !want(item)) continue;
+      const Vec3& p = items.centroid[item];
+      int top = 0;
+      stack[top++] = 0;
+      while (top > 0) {
+        const BoxNode& node = nodes[stack[--top]];
+        if (squaredDistanceToNode(node, p.x(), p.y(), p.z()) > 0.0) continue;
+        if (node.count == 0) {
+          stack[top++] = node.first;
+          stack[top++] = static_cast<std::uint32_t>(&node - nodes.data()) + 1;
+          continue;
+        }
+        for (std::uint32_t j = node.first; j < node.first + node.count; ++j) {
+          const std::uint32_t c = order[j];
+          if ((p - centre[c]).squaredNorm() <= reach2[c] && accept(item, c)) list.push_back(c);
+        }
+      }
+    }
+    start.push_back(static_cast<std::uint32_t>(list.size()));
+  });
+  return out;
+}
+
 // Hands each item to the sphere it lies deepest in, keeping the centres: an item goes to the sphere s that
 // holds all its corners (at the current radii) with the most room, max over corners |corner - c_s| - R_s least,
 // among its own and those whose excess passed the judge (open: not a single item kept whatever its excess, which
@@ -540,47 +598,13 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
   };
   fitRadii();
   // Candidates, once: the open spheres that hold the item at the first radii, and its own. Radii only shrink, so
-  // no other sphere can hold it in a later round. Per thread, its own run of items.
-  std::vector<Eigen::AlignedBox3d> balls;
-  std::vector<std::uint32_t> sphereOf;  // the open spheres, in the tree's item order
-  for (std::size_t c = 0; c < k; ++c) {
-    if (!open[c]) continue;
-    balls.emplace_back(centres[c] - Vec3::Constant(radius[c]), centres[c] + Vec3::Constant(radius[c]));
-    sphereOf.push_back(static_cast<std::uint32_t>(c));
-  }
-  std::vector<BoxNode> nodes;
-  std::vector<std::uint32_t> order;
-  if (buildBoxTree(balls, 4, 0.0, nodes, order) == kNone) return radius;
-  for (std::uint32_t& j : order) j = sphereOf[j];
-  const unsigned threads = detail::threadsFor(n, 0, 4096);
-  std::vector<std::vector<std::uint32_t>> candidates(threads), starts(threads);
-  detail::runParallel(threads, [&](unsigned t) {
-    std::uint32_t stack[64];
-    std::vector<std::uint32_t>& list = candidates[t];
-    std::vector<std::uint32_t>& start = starts[t];
-    for (std::size_t item = n * t / threads; item < n * (t + 1) / threads; ++item) {
-      start.push_back(static_cast<std::uint32_t>(list.size()));
-      const TrianglePiece& corners = items.corners[item];
-      const Vec3& p = items.centroid[item];
-      int top = 0;
-      stack[top++] = 0;
-      while (top > 0) {
-        const BoxNode& node = nodes[stack[--top]];
-        if (squaredDistanceToNode(node, p.x(), p.y(), p.z()) > 0.0) continue;  // a ball holding the item holds p
-        if (node.count == 0) {
-          stack[top++] = node.first;
-          stack[top++] = static_cast<std::uint32_t>(&node - nodes.data()) + 1;
-          continue;
-        }
-        for (std::uint32_t j = node.first; j < node.first + node.count; ++j) {
-          const std::uint32_t s = order[j];
-          if ((p - centres[s]).squaredNorm() > far2[s]) continue;  // nor the item then
-          if (farthest2(corners, centres[s]) <= far2[s]) list.push_back(s);
-        }
-      }
-    }
-    start.push_back(static_cast<std::uint32_t>(list.size()));
-  });
+  // no other sphere can hold it in a later round. (A ball holding the item holds its centroid.)
+  const HolderLists held = ballsHolding(
+      items, centres, far2, [&](std::size_t c) { return open[c] != 0; }, [](std::size_t) { return true; },
+      [&](std::size_t item, std::uint32_t c) { return farthest2(items.corners[item], centres[c]) <= far2[c]; });
+  const unsigned threads = held.threads;
+  const auto& candidates = held.list;
+  const auto& starts = held.start;
   // Rounds: each item decides from the previous round's radii and writes its own entry.
   for (int round = 0; round < kRounds; ++round) {
     std::vector<char> moved(threads, 0);
@@ -682,46 +706,16 @@ void settleThinPatches(const TriangleItems& items, const std::vector<char>& thin
   for (std::size_t c = 0; c < k; ++c)
     if (thin[c]) site[c] += kJitter * std::sqrt(reach2[c]) * fixedJitter(c);
   // Candidates, once: the thin patches whose ball about the moved site, kReachMargin times its reach, holds the
-  // item's centroid (the sites move little after the first round). Per thread, its own run of items.
+  // item's centroid (the sites move little after the first round).
   constexpr double kReachMargin = 1.5;
-  std::vector<Eigen::AlignedBox3d> balls;
-  std::vector<std::uint32_t> patchOf;
-  for (std::size_t c = 0; c < k; ++c) {
-    if (!thin[c] || weight[c] == 0.0) continue;
-    const double reach = kReachMargin * std::sqrt(reach2[c]);
-    balls.emplace_back(site[c] - Vec3::Constant(reach), site[c] + Vec3::Constant(reach));
-    patchOf.push_back(static_cast<std::uint32_t>(c));
-  }
-  std::vector<BoxNode> nodes;
-  std::vector<std::uint32_t> order;
-  if (buildBoxTree(balls, 4, 0.0, nodes, order) == kNone) return;
-  for (std::uint32_t& j : order) j = patchOf[j];
-  const unsigned threads = detail::threadsFor(n, 0, 4096);
-  std::vector<std::vector<std::uint32_t>> candidates(threads), starts(threads);
-  detail::runParallel(threads, [&](unsigned t) {
-    std::uint32_t stack[64];
-    for (std::size_t item = n * t / threads; item < n * (t + 1) / threads; ++item) {
-      starts[t].push_back(static_cast<std::uint32_t>(candidates[t].size()));
-      if (!thin[cluster[item]]) continue;
-      const Vec3& p = items.centroid[item];
-      int top = 0;
-      stack[top++] = 0;
-      while (top > 0) {
-        const BoxNode& node = nodes[stack[--top]];
-        if (squaredDistanceToNode(node, p.x(), p.y(), p.z()) > 0.0) continue;
-        if (node.count == 0) {
-          stack[top++] = node.first;
-          stack[top++] = static_cast<std::uint32_t>(&node - nodes.data()) + 1;
-          continue;
-        }
-        for (std::uint32_t j = node.first; j < node.first + node.count; ++j) {
-          const std::uint32_t s = order[j];
-          if ((p - site[s]).squaredNorm() <= kReachMargin * kReachMargin * reach2[s]) candidates[t].push_back(s);
-        }
-      }
-    }
-    starts[t].push_back(static_cast<std::uint32_t>(candidates[t].size()));
-  });
+  std::vector<double> around(k);
+  for (std::size_t c = 0; c < k; ++c) around[c] = kReachMargin * kReachMargin * reach2[c];
+  const HolderLists held = ballsHolding(
+      items, site, around, [&](std::size_t c) { return thin[c] && weight[c] > 0.0; },
+      [&](std::size_t item) { return thin[cluster[item]] != 0; }, [](std::size_t, std::uint32_t) { return true; });
+  const unsigned threads = held.threads;
+  const auto& candidates = held.list;
+  const auto& starts = held.start;
   std::vector<std::uint32_t> next(n);
   for (int round = 0; round < kSettleRounds; ++round) {
     reach2 = farthestByCluster(items, cluster, site);
