@@ -48,8 +48,9 @@ namespace clod_haptics {
  * by 10 to 50% (bench/results/thin_tightness.md).
  *
  * Thin patches (when the builder asks for lists): a sphere whose centre lies less than 0.3 of its radius below the
- * surface and whose corners lie near a plane (within a quarter of the radius, rms) is a patch of a thin part, its
- * ball sticking out on both sides; its volume outside grows as R^3 while what it covers grows as R^2, so equal,
+ * surface, whose corners lie near a plane (within a quarter of the radius, rms) and whose triangles face both ways
+ * (both faces of a plate, not a flat face of a thick part) is a patch of a thin part, its ball sticking out on both
+ * sides; its volume outside grows as R^3 while what it covers grows as R^2, so equal,
  * compact patches (hexagons) hold the most for their volume, and the tree's halvings leave rectangles. Such patches
  * are settled before the handing over: their items are halved further (continuing their triangle's halving),
  * Lloyd's rounds on the surface move them between thin patches towards compact, alike patches (out of the tree's
