@@ -118,6 +118,47 @@ struct Builder {
       }
   }
 
+  // A closed curved shell of thickness th about the surface f(u, w), u and w in [0, 1] on an nu x nw grid: the two
+  // offset sheets (f +- th / 2 along the surface normal), closed at w = 0 and w = 1 by strips, and at u = 0 and
+  // u = 1 too unless the surface wraps around in u (f(0, w) = f(1, w)). Outward wound when f_u x f_w points to
+  // the first sheet's side.
+  template <class F>
+  void shell(F f, int nu, int nw, double th, bool wrapU) {
+    auto normal = [&](double u, double w) {
+      const double e = 1e-6;
+      return Vec3((f(u + e, w) - f(u - e, w)).cross(f(u, w + e) - f(u, w - e)).normalized());
+    };
+    const int cu = wrapU ? nu : nu + 1;
+    const std::uint32_t first = static_cast<std::uint32_t>(v.size());
+    for (int side = 0; side < 2; ++side)
+      for (int j = 0; j <= nw; ++j)
+        for (int i = 0; i < cu; ++i) {
+          const double u = static_cast<double>(i) / nu, w = static_cast<double>(j) / nw;
+          add(f(u, w) + (side == 0 ? 0.5 : -0.5) * th * normal(u, w));
+        }
+    auto at = [&](int side, int i, int j) {
+      return first + static_cast<std::uint32_t>(side * cu * (nw + 1) + j * cu + (wrapU ? i % nu : i));
+    };
+    auto quad = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t d) {
+      tri(a, b, c);
+      tri(a, c, d);
+    };
+    for (int j = 0; j < nw; ++j)
+      for (int i = 0; i < nu; ++i) {
+        quad(at(0, i, j), at(0, i + 1, j), at(0, i + 1, j + 1), at(0, i, j + 1));
+        quad(at(1, i, j), at(1, i, j + 1), at(1, i + 1, j + 1), at(1, i + 1, j));
+      }
+    for (int i = 0; i < nu; ++i) {
+      quad(at(0, i, 0), at(1, i, 0), at(1, i + 1, 0), at(0, i + 1, 0));
+      quad(at(0, i + 1, nw), at(1, i + 1, nw), at(1, i, nw), at(0, i, nw));
+    }
+    if (!wrapU)
+      for (int j = 0; j < nw; ++j) {
+        quad(at(0, 0, j + 1), at(1, 0, j + 1), at(1, 0, j), at(0, 0, j));
+        quad(at(0, nu, j), at(1, nu, j), at(1, nu, j + 1), at(0, nu, j + 1));
+      }
+  }
+
   TriangleMesh mesh(const std::string& name) { return clod_haptics::makeMesh(v, t, name); }
 };
 
@@ -191,6 +232,32 @@ std::vector<ThinModel> thinModels() {
       b.cylinder(Vec3(x, y, 0.2), Vec3(x * 1.1, y * 1.3, -0.4), 0.02, 16, 30);
     }
     models.push_back({"legs", "ellipsoid body 0.7 x 0.36 x 0.3 on four legs 0.04 thick", b.mesh("legs")});
+  }
+  // Curved thin shells (added 2026-11-28, after the thin-patch settling was tuned on the flat plates: held out).
+  {
+    Builder b;
+    b.shell([](double u,
+               double w) { return Vec3(0.2 * std::cos(2 * M_PI * u), 0.2 * std::sin(2 * M_PI * u), 0.4 * w - 0.2); },
+            48, 20, 0.004, true);
+    models.push_back({"tube-shell-0.004", "open tube of radius 0.2, 0.4 long, wall 0.004", b.mesh("tube-shell-0.004")});
+  }
+  {
+    Builder b;
+    b.shell([](double u, double w) { return Vec3(0.7 * u - 0.35, 0.4 * w - 0.2, 0.06 * std::sin(2 * M_PI * u / 0.5)); },
+            35, 20, 0.006, false);
+    models.push_back({"wavy-plate-0.006", "plate 0.7 x 0.4 waved by 0.06, 0.006 thick", b.mesh("wavy-plate-0.006")});
+  }
+  {
+    Builder b;
+    b.shell(
+        [](double u, double w) {
+          const double theta = 0.1 + 0.9 * w, phi = 2 * M_PI * u;  // clear of the pole, where the sheets would meet
+          return Vec3(0.3 * std::sin(theta) * std::cos(phi), 0.3 * std::sin(theta) * std::sin(phi),
+                      0.3 * std::cos(theta));
+        },
+        40, 15, 0.01, true);
+    models.push_back(
+        {"cap-shell-0.01", "spherical zone of radius 0.3 from 6 to 57 degrees, 0.01 thick", b.mesh("cap-shell-0.01")});
   }
   return models;
 }
