@@ -57,7 +57,9 @@ namespace clod_haptics {
  * grid by a jitter fixed by each patch's index), each centre goes to its patch's smallest enclosing ball, and the
  * pieces at a patch's rim are halved once more so that the handing over can give them to a neighbour. On plates
  * this takes 28 to 32% off the spheres' volume at the same count; a triangle in a thin patch may then be listed by
- * several spheres (one per piece at most), like a long one. Deterministic, independent of the threads.
+ * several spheres (one per piece at most), like a long one. Deterministic, independent of the threads. A settled
+ * sphere is not judged again: the excess bound d^3 above is the judge's for the patches as cut, not a promise for a
+ * settled one (CapOfEverySphereHoldsAtMostABallOfRadiusD still holds on head and elephant, whose ears settle).
  *
  * Every radius reaches every corner of every triangle or piece its sphere holds, so coverage holds whatever the
  * centres are: every point of every triangle lies in a sphere listing it (the invariant the detector relies on,
