@@ -771,7 +771,7 @@ void settleThinPatches(const TriangleItems& items, const std::vector<char>& thin
   }
 }
 
-// Which leaves are thin patches (kThinDepth, kThinFlat), and their radii (farthest corner from the centre).
+// Which leaves are thin patches (kThinDepth, kThinFlat, kTwoSided), and their radii (farthest corner from the centre).
 std::vector<char> thinPatches(const TriangleItems& items, const std::vector<std::uint32_t>& cluster,
                               const std::vector<Vec3>& centres, const std::vector<char>& open,
                               const std::vector<double>& depth, std::vector<double>& radius) {

@@ -57,24 +57,16 @@ void halveWhile(const TrianglePiece& t, int maxDepth, int depth, Split&& split, 
 }
 
 /**
- * \brief halveWhile with the pieces halved until no edge exceeds maxEdge (none when maxEdge is not positive).
- */
-template <class Visit>
-void forEachPieceAt(const TrianglePiece& t, double maxEdge, int maxDepth, int depth, Visit&& visit) {
-  halveWhile(
-      t, maxDepth, depth,
-      [maxEdge](const TrianglePiece& piece) { return maxEdge > 0.0 && longestEdge2(piece) > maxEdge * maxEdge; },
-      visit);
-}
-
-/**
  * \brief Calls visit(piece) for each piece of t, halved until no edge exceeds maxEdge or maxDepth halvings,
  * depth first, the first half before the second. A triangle within maxEdge (or maxEdge not positive) is one
  * piece, itself.
  */
 template <class Visit>
 void forEachPiece(const TrianglePiece& t, double maxEdge, int maxDepth, Visit&& visit) {
-  forEachPieceAt(t, maxEdge, maxDepth, 0, [&](const TrianglePiece& piece, int) { visit(piece); });
+  halveWhile(
+      t, maxDepth, 0,
+      [maxEdge](const TrianglePiece& piece) { return maxEdge > 0.0 && longestEdge2(piece) > maxEdge * maxEdge; },
+      [&](const TrianglePiece& piece, int) { visit(piece); });
 }
 
 /**
