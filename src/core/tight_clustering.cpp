@@ -44,7 +44,10 @@ constexpr double kCompactGain = 0.85;
 // the mean leaves the halves most compact: the least of the two halves' largest squared distance of a key from the
 // half's mean, if it is below kCompactGain of the principal cut's, else the principal axis (the one of largest
 // variance). A thin cylinder's ring is thus cut along the cylinder, where the principal axis alone turns across it
-// once the ring is shorter than its girth.
+// once the ring is shorter than its girth. Not for a hollow node (PatchJudge::hollow): there a ring's halves, whose
+// keys lie farther from their own mean than the ring's from its, seem less compact than thinner rings, and the tree
+// would cut a hollow tube (or a shell's rim) into rings whose spheres sit in the empty space they enclose (on
+// thin_bench's tube-shell-0.004, 19 balls of the tube's radius centred on its axis).
 Vec3 compactAxis(const std::vector<std::uint32_t>& items, std::uint32_t begin, std::uint32_t end,
                  const std::vector<Vec3>& key, const Vec3& mean, const Eigen::Matrix3d& axes) {
   Vec3 best = axes.col(2);
@@ -278,6 +281,16 @@ class PatchJudge {
   PatchJudge(const TriangleMesh& mesh, const TriangleItems& items, const std::vector<std::uint32_t>& order, double d)
       : mesh_(mesh), items_(items), order_(order), surface_(mesh), bvh_(mesh), dirs_(rayDirections()), d3_(d * d * d) {}
 
+  // Whether the mean of node r's item centroids lies outside the mesh: the node then encloses empty space (a ring
+  // of a hollow tube, a shell's rim), and its split takes the principal axis (compactAxis). Depends on the node
+  // alone, never on d, so the tree does not either.
+  bool hollow(Range r) const {
+    Vec3 mean = Vec3::Zero();
+    for (std::uint32_t i = r.begin; i < r.end; ++i) mean += items_.centroid[order_[i]];
+    mean /= static_cast<double>(r.end - r.begin);
+    return surface_.signedDistance(mean, kInfinity) < 0.0;
+  }
+
   // Whether node r becomes a sphere; its centre in best either way, in passed whether its excess is within
   // d^3 (a single item is kept even when it is not), and in depth the centre's signed distance below the surface
   // (+inf when it was not needed).
@@ -446,7 +459,7 @@ class PatchTree {
   // Whether node r is a leaf (with its centre); if not, it is split and mid is where its second half starts.
   bool isLeaf(Range r, Vec3& centre, bool& passed, double& depth, std::uint32_t& mid) {
     if (judge_.evaluate(r, centre, passed, depth)) return true;
-    mid = splitAtMean(order_, r.begin, r.end, items_.centroid, true);
+    mid = splitAtMean(order_, r.begin, r.end, items_.centroid, !judge_.hollow(r));
     return false;
   }
 

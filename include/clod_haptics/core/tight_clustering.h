@@ -19,7 +19,10 @@ namespace clod_haptics {
  * leaves of a binary tree that does not depend on d: a node's triangles are split in two at the mean of
  * their centroids along the one of the centroids' three principal axes that leaves the two children most compact
  * (the least largest distance of a centroid from its child's mean), so that a thin cylinder is cut into rings
- * rather than across them. A node becomes a sphere when its
+ * rather than across them; but along the principal axis alone when the mean of the centroids lies outside the mesh
+ * (a ring of a hollow tube or of a shell's rim, whose sphere would be centred in the empty space it encloses, and
+ * whose halves that measure judges less compact than the ring), so that a hollow part is cut into patches of its
+ * wall. A node becomes a sphere when its
  * excess is at most d^3: with R reaching every vertex of its triangles, rho the signed distance from
  * its centre to the mesh (SurfaceDistance) and h = R - rho the height of its cap beyond the tangent
  * plane at the nearest surface point, the excess h^2 (3R - h) / 4 is that cap's volume over 4/3 pi;
