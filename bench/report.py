@@ -784,6 +784,10 @@ def contact_path_rows(models, idx):
             cls = "path-" + sp
             c, g, e, cg = (idx.get((m, cls, w)) for w in ["clod-grid-cache", "clod-grid", "embree", "cgal"])
             sc, se = idx.get((m, cls + "-shallow", "clod-grid-cache")), idx.get((m, cls + "-shallow", "embree"))
+            # The cache against the stateless query: interleaved point by point when the run has it (timePaired).
+            pc, pg = idx.get((m, cls + "-shallow", "clod-grid-cache-paired")), idx.get((m, cls + "-shallow",
+                                                                                        "clod-grid-paired"))
+            sg, sgc = (pg, pc) if pc and pg else (idx.get((m, cls + "-shallow", "clod-grid")), sc)
             if not (c and g and e):
                 continue
             deep = 1.0 - num(sc["n"]) / num(c["n"]) if sc else float("nan")
@@ -794,9 +798,33 @@ def contact_path_rows(models, idx):
                 f"{f(ratio(e['mean_ns'], c['mean_ns']))} / {f(ratio(e['p99_ns'], c['p99_ns']))}",
                 f"{f(ratio(e['mean_ns'], g['mean_ns']))} / {f(ratio(e['p99_ns'], g['p99_ns']))}",
                 f"{f(ratio(se['mean_ns'], sc['mean_ns']))} / {f(ratio(se['p99_ns'], sc['p99_ns']))}" if sc and se else "-",
+                f"{f(ratio(sg['mean_ns'], sgc['mean_ns']))} / {f(ratio(sg['p99_ns'], sgc['p99_ns']))}" if sgc and sg else "-",
                 f"{f(ratio(cg['mean_ns'], c['mean_ns']))} / {f(ratio(cg['p99_ns'], c['p99_ns']))}" if cg else "-",
             ])
     return rows
+
+
+def cache_summary(models, idx):
+    """The QueryCache against the stateless query on the shallow points of the coherent paths (the same question)."""
+    rs = []
+    for m in models:
+        for sp in SPEEDS:
+            key = "path-" + sp + "-shallow"
+            sc, sg = (idx.get((m, key, w)) for w in ["clod-grid-cache-paired", "clod-grid-paired"])
+            paired = bool(sc and sg)
+            if not paired:
+                sc, sg = (idx.get((m, key, w)) for w in ["clod-grid-cache", "clod-grid"])
+            if sc and sg:
+                rs.append((ratio(sg["mean_ns"], sc["mean_ns"]), m, sp, paired))
+    if not rs:
+        return ""
+    slower = sorted(x for x in rs if x[0] < 1.0)
+    worst = ", ".join(f"{m} at {sp} m/s {f(r)}" for r, m, sp, _ in slower[:4])
+    how = ("the two interleaved point by point, which one first alternating (`-paired` rows in contact.csv)"
+           if all(x[3] for x in rs) else "contender after contender, so a few percent either way is the machine's noise")
+    return (f"Shallow points, no cache / cache by the mean (above 1: the cache is faster; {how}): below 1 on "
+            f"{len(slower)} of {len(rs)} paths{', below 0.98 on ' + str(sum(x[0] < 0.98 for x in rs)) if slower else ''}"
+            f"{' (lowest: ' + worst + ')' if slower else ''}.\n")
 
 
 def contact_summary(models, idx):
@@ -853,8 +881,10 @@ def contact_section(out):
         "the cached stream follows the push there (a contact, a deeper search), the stateless contenders answer "
         "free. `shallow`: the ratio without those points (the same question for everyone). Ratios "
         "mean / p99.\n")
+    md.append(cache_summary(models, idx))
     md.append(table(["model", "m/s", "deep", "cache mean / p99 ns", "no cache mean / p99 ns", "Embree mean / p99 ns",
-                     "Embree/cache", "Embree/no cache", "shallow: Embree/cache", "CGAL/cache"],
+                     "Embree/cache", "Embree/no cache", "shallow: Embree/cache", "shallow: no cache/cache",
+                     "CGAL/cache"],
                     contact_path_rows(models, idx)))
     md.append("## Start-up\n")
     md.append(
