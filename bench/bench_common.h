@@ -2,6 +2,9 @@
 // Shared pieces of the clod_haptics benchmark: the peer interface, the exact pruned reference,
 // the per-query timer and small helpers. Not part of the library; never a test.
 
+#include <x86intrin.h>
+
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -80,6 +83,19 @@ struct Clock {
   static double nsPerTick;
   static double overheadTicks;  // median cost of an empty timed region
 };
+
+/** \brief The time (ns) of one call of f between fenced time-stamp reads, the empty region's cost subtracted. */
+template <class F>
+float fencedNs(F&& f) {
+  _mm_lfence();
+  const std::uint64_t a = __rdtsc();
+  _mm_lfence();
+  f();
+  _mm_lfence();
+  const std::uint64_t b = __rdtsc();
+  _mm_lfence();
+  return static_cast<float>(std::max(0.0, (static_cast<double>(b - a) - Clock::overheadTicks) * Clock::nsPerTick));
+}
 
 /** \brief Per-query times (ns) and summary statistics. */
 struct Timing {

@@ -108,15 +108,8 @@ Timing timeEach(std::size_t n, double budget, std::size_t minCount, F&& f, S&& o
   const std::uint64_t budgetTicks = static_cast<std::uint64_t>(budget * 1e9 / Clock::nsPerTick);
   const std::uint64_t begin = __rdtsc();
   for (std::size_t i = 0; i < n; ++i) {
-    _mm_lfence();
-    const std::uint64_t a = __rdtsc();
-    _mm_lfence();
-    f(i);
-    _mm_lfence();
-    const std::uint64_t b = __rdtsc();
-    _mm_lfence();
-    t.ns.push_back(static_cast<float>(std::max(0.0, (static_cast<double>(b - a) - Clock::overheadTicks) * Clock::nsPerTick)));
-    if (i + 1 >= minCount && (i & 63) == 63 && b - begin > budgetTicks) break;
+    t.ns.push_back(fencedNs([&] { f(i); }));
+    if (i + 1 >= minCount && (i & 63) == 63 && __rdtsc() - begin > budgetTicks) break;
   }
   t.totalSeconds = secondsSince(start);
   t.summarise();
@@ -1105,16 +1098,8 @@ std::pair<Timed, Timed> timePaired(const Peer& a, const Peer& b, const std::vect
     a.startStream();
     b.startStream();
     auto timeOne = [&](const Peer& peer, Timed& t, std::size_t i) {
-      _mm_lfence();
-      const std::uint64_t x = __rdtsc();
-      _mm_lfence();
-      peer.query(points[i], s.r, t.answers[i]);
-      _mm_lfence();
-      const std::uint64_t y = __rdtsc();
-      _mm_lfence();
+      t.ns[i] = fencedNs([&] { peer.query(points[i], s.r, t.answers[i]); });
       benchmark::DoNotOptimize(t.answers[i]);
-      t.ns[i] =
-          static_cast<float>(std::max(0.0, (static_cast<double>(y - x) - Clock::overheadTicks) * Clock::nsPerTick));
     };
     for (std::size_t i = 0; i < points.size(); ++i) {
       if ((i + static_cast<std::size_t>(round)) & 1) {

@@ -1,8 +1,6 @@
 // The proxy section of clod_bench (see proxy_bench.h). Every model in metres at the stylus scale.
 #include "proxy_bench.h"
 
-#include <x86intrin.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -275,17 +273,7 @@ void popThroughs(const std::vector<std::unique_ptr<Model>>& models, int runs, st
 std::vector<float> timeTicks(const std::vector<Vec3>& path, const std::function<void(const Vec3&)>& f) {
   std::vector<float> ns;
   ns.reserve(path.size());
-  for (const Vec3& p : path) {
-    _mm_lfence();
-    const std::uint64_t a = __rdtsc();
-    _mm_lfence();
-    f(p);
-    _mm_lfence();
-    const std::uint64_t b = __rdtsc();
-    _mm_lfence();
-    ns.push_back(
-        static_cast<float>(std::max(0.0, (static_cast<double>(b - a) - Clock::overheadTicks) * Clock::nsPerTick)));
-  }
+  for (const Vec3& p : path) ns.push_back(fencedNs([&] { f(p); }));
   return ns;
 }
 

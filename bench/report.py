@@ -784,10 +784,7 @@ def contact_path_rows(models, idx):
             cls = "path-" + sp
             c, g, e, cg = (idx.get((m, cls, w)) for w in ["clod-grid-cache", "clod-grid", "embree", "cgal"])
             sc, se = idx.get((m, cls + "-shallow", "clod-grid-cache")), idx.get((m, cls + "-shallow", "embree"))
-            # The cache against the stateless query: interleaved point by point when the run has it (timePaired).
-            pc, pg = idx.get((m, cls + "-shallow", "clod-grid-cache-paired")), idx.get((m, cls + "-shallow",
-                                                                                        "clod-grid-paired"))
-            sg, sgc = (pg, pc) if pc and pg else (idx.get((m, cls + "-shallow", "clod-grid")), sc)
+            sg, sgc, _ = cache_pair(idx, m, cls + "-shallow")
             if not (c and g and e):
                 continue
             deep = 1.0 - num(sc["n"]) / num(c["n"]) if sc else float("nan")
@@ -804,16 +801,21 @@ def contact_path_rows(models, idx):
     return rows
 
 
+def cache_pair(idx, m, key):
+    """The stateless and the cached rows of one set, interleaved point by point when the run has them (timePaired),
+    else the contenders' own rows; and whether they were interleaved."""
+    g, c = idx.get((m, key, "clod-grid-paired")), idx.get((m, key, "clod-grid-cache-paired"))
+    if g and c:
+        return g, c, True
+    return idx.get((m, key, "clod-grid")), idx.get((m, key, "clod-grid-cache")), False
+
+
 def cache_summary(models, idx):
     """The QueryCache against the stateless query on the shallow points of the coherent paths (the same question)."""
     rs = []
     for m in models:
         for sp in SPEEDS:
-            key = "path-" + sp + "-shallow"
-            sc, sg = (idx.get((m, key, w)) for w in ["clod-grid-cache-paired", "clod-grid-paired"])
-            paired = bool(sc and sg)
-            if not paired:
-                sc, sg = (idx.get((m, key, w)) for w in ["clod-grid-cache", "clod-grid"])
+            sg, sc, paired = cache_pair(idx, m, "path-" + sp + "-shallow")
             if sc and sg:
                 rs.append((ratio(sg["mean_ns"], sc["mean_ns"]), m, sp, paired))
     if not rs:

@@ -26,10 +26,9 @@ enum class FastLevel : std::uint8_t {
 /**
  * \brief Per-stream state for temporal coherence: a haptic pointer moves little between two
  * queries, so the last cell and (after a step of at most the radius) the last contact triangle are tried first, and
- * a slow stream answers from the
- * triangles it kept near its pointer (the neighbourhood below). Owned by the caller (one per stylus stream, not
- * shared between threads; about 700 bytes). Every contact within the pointer radius is answered
- * the same with or without it; the cache adds one thing, deep penetration: after an answer with the
+ * a slow stream answers from the triangles it kept near its pointer (the neighbourhood below). Owned by the caller
+ * (one per stylus stream, not shared between threads; about 700 bytes). Every contact within the pointer radius is
+ * answered the same with or without it; the cache adds one thing, deep penetration: after an answer with the
  * centre inside, the stream keeps its contact when the centre goes deeper than the radius (see query()).
  */
 struct QueryCache {
