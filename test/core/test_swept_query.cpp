@@ -455,9 +455,9 @@ TEST(SweptSphereQuery, SameAsBruteForceOnTheContactShell) {
 }
 
 // Triangles far smaller than r crowd the grid's cells beyond ClodDetector::kTreeAboveEntries: a sweep that starts in
-// such a cell goes through the tree over the mesh instead (its boxes judged by their distance to the part of the
-// sweep inside them). A bumpy height field of 28,800 triangles at r = 0.2 (edges of 0.08 r): random sweeps near it
-// and a proxy's sweeps resting on it, every answer brute force's.
+// or ends in such a cell goes through the tree over the mesh instead (its boxes judged by their distance to the part of
+// the sweep inside them). A bumpy height field of 28,800 triangles at r = 0.2 (edges of 0.08 r): random sweeps near
+// it, a proxy's sweeps resting on it and sweeps coming down into it from free space, every answer brute force's.
 TEST(SweptSphereQuery, SameAsBruteForceInCrowdedCells) {
   auto mesh = std::make_shared<const TriangleMesh>(clod_test::heightField(
       120, [](double x, double y) { return 0.1 * std::sin(3.0 * x) * std::cos(2.0 * y); }, Eigen::Matrix3d::Identity(),
@@ -479,13 +479,23 @@ TEST(SweptSphereQuery, SameAsBruteForceInCrowdedCells) {
     const double normalPart[] = {0.0, -1e-3, 1e-3};
     sweeps.push_back({a, a + r * (0.01 + u(rng)) * (tangent + normalPart[i % 3] * n), static_cast<std::int32_t>(t)});
   }
+  for (int i = 0; i < 200; ++i) {  // a stylus coming down from free space into it: from a sparse cell to a crowded one
+    const Vec3 q(0.5 + 2.0 * (u(rng) - 0.5), -0.25 + 2.0 * (u(rng) - 0.5), 2.0);
+    const Vec3 a = q + Vec3(0.0, 0.0, r * (2.0 + 6.0 * u(rng)));
+    sweeps.push_back({a, q + Vec3(0.2 * r * (u(rng) - 0.5), 0.2 * r * (u(rng) - 0.5), -r * u(rng))});
+  }
   const CellGrid& grid = detector->grid();
-  std::size_t crowded = 0;
+  auto crowdedAt = [&](const Vec3& p) {
+    const CellGrid::CellRef* ref = grid.find(grid.keyOf(mesh->toLocal(p)));
+    return ref != nullptr && grid.cell(*ref).count > ClodDetector::kTreeAboveEntries;
+  };
+  std::size_t crowded = 0, intoCrowded = 0;
   for (const Sweep& w : sweeps) {
-    const CellGrid::CellRef* ref = grid.find(grid.keyOf(mesh->toLocal(w.a)));
-    crowded += ref != nullptr && grid.cell(*ref).count > ClodDetector::kTreeAboveEntries;
+    crowded += crowdedAt(w.a);
+    intoCrowded += !crowdedAt(w.a) && crowdedAt(w.b);
   }
   EXPECT_GT(crowded, sweeps.size() / 2) << "the height field must crowd the cells beyond kTreeAboveEntries";
+  EXPECT_GT(intoCrowded, 20u) << "sweeps from a sparse cell into a crowded one";
   expectSameAsBruteForce(*mesh, query, sweeps, r, "crowded height field");
 }
 

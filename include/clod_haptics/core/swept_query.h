@@ -75,8 +75,8 @@ SweptContact bruteForceSweep(const TriangleMesh& mesh, const Vec3& a, const Vec3
  * every contact at radius r is found; a triangle that comes within the rounding margin beyond the grid's
  * radius but never within it may be passed over there (the answer then differs from bruteForceSweep's only
  * within that margin, and still reports no path free that is blocked at radius r).
- * Larger radii, a mesh without a grid, a sweep longer than 4096 cells, and a sweep that starts in a cell listing
- * more than ClodDetector::kTreeAboveEntries triangles (triangles far smaller than r) walk the box tree over the
+ * Larger radii, a mesh without a grid, a sweep longer than 4096 cells, and a sweep that starts or ends in a cell
+ * listing more than ClodDetector::kTreeAboveEntries triangles (triangles far smaller than r) walk the box tree over the
  * triangles (MeshBoxTree: the grid detector's, else the mesh's own when it fits, else built here) with the capsule,
  * nearest node first; a node is entered when the part of the sweep inside its box grown by r comes within r of the
  * box and of the node's slab (NodeSlab).
