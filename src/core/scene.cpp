@@ -1,6 +1,7 @@
 #include "clod_haptics/core/scene.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 
@@ -19,7 +20,12 @@ void requireRigid(const Eigen::Isometry3d& pose, const std::string& name) {
   }
 }
 
+// Every scene state gets its own number, across all scenes: a stream's neighbourhood from one never serves another.
+std::atomic<std::uint64_t> nextVersion{1};
+
 }  // namespace
+
+void SceneDetector::touch() { version_ = nextVersion.fetch_add(1, std::memory_order_relaxed); }
 
 std::uint32_t SceneDetector::addObject(std::string name, std::shared_ptr<const TriangleMesh> mesh,
                                        std::shared_ptr<const ClodDetector> detector,
@@ -51,6 +57,8 @@ std::uint32_t SceneDetector::addObject(std::string name, std::shared_ptr<const T
   active_.push_back(1);
   setPose(index, worldFromObject);
   measureSpheres(index);
+  tree_.build(boundX_.data(), boundY_.data(), boundZ_.data(), boundR_.data(), sphereGrow_.data(), objects_.size());
+  touch();
   return index;
 }
 
@@ -72,6 +80,8 @@ void SceneDetector::updateBound(std::uint32_t i) {
   boundX_[i] = active_[i] ? c.x() : nan;
   boundY_[i] = active_[i] ? c.y() : nan;
   boundZ_[i] = active_[i] ? c.z() : nan;
+  tree_.update(i, boundX_.data(), boundY_.data(), boundZ_.data(), boundR_.data(), sphereGrow_.data());
+  touch();
 }
 
 void SceneDetector::setDetector(std::uint32_t i, std::shared_ptr<const ClodDetector> detector) {
@@ -95,6 +105,8 @@ void SceneDetector::measureSpheres(std::uint32_t i) {
   }
   sphereGrow_[i] = sphereGrow * (1.0 + 1e-9) + 1e-12;
   object.boxGrow = boxGrow * (1.0 + 1e-9) + 1e-12;
+  tree_.update(i, boundX_.data(), boundY_.data(), boundZ_.data(), boundR_.data(), sphereGrow_.data());
+  touch();
 }
 
 void SceneDetector::setActive(std::uint32_t i, bool active) {
@@ -134,49 +146,108 @@ void SceneDetector::query(const Vec3& p, double r, DetectionMode mode, SceneCont
         continue;
       }
       const std::size_t i = base + k;
-      const Object& object = objects_[i];
-      const Vec3 local = object.objectFromWorld * p;
-      // The box is tighter than the sphere for long or flat objects; still no sphere touched.
-      if (object.localBox.exteriorDistance(object.mesh->toLocal(local)) > r + (spheres ? object.boxGrow : 0.0)) {
-        if (caches) caches[i].lastInside = false;
-        continue;
-      }
-      ++out.objectsQueried;
-      ContactResult result;
-      if (object.detector) {
-        object.detector->query(local, r, mode, result, caches ? &caches[i] : nullptr);
-      } else if (caches && caches[i].lastInside && mode != DetectionMode::Spheres) {
-        // The stream was inside this object: follow the push beyond r, as a detector with a cache does.
-        result = bruteForceSignedQuery(*object.mesh, local, r);
-        caches[i].lastInside = result.contact && result.inside;
-        ++out.bruteForce;
-      } else {
-        result = bruteForceQuery(*object.mesh, local, r);
-        if (caches) caches[i].lastInside = result.contact && result.inside && mode != DetectionMode::Spheres;
-        ++out.bruteForce;
-      }
-      if (!result.contact) continue;
-      ++out.touched;
-      out.contact = true;
-      // depth is the signed penetration (r + distance with the centre inside): the summed spring grows
-      // while the pointer pushes into any object, and maxDepth names the object pushed deepest.
-      const Vec3 normal = object.worldFromObject.linear() * result.normal;
-      out.penetration += result.depth * normal;
-      if (out.contacts < capacity) {
-        SceneContact& c = contacts[out.contacts];
-        c.object = static_cast<std::uint32_t>(i);
-        c.local = result;
-        c.point = object.worldFromObject * result.point;
-        c.normal = normal;
-        if (out.deepest < 0 || result.depth > out.maxDepth) {
-          out.deepest = static_cast<std::int32_t>(out.contacts);
-          out.maxDepth = result.depth;
-        }
-        ++out.contacts;
-      } else if (result.depth > out.maxDepth) {
-        out.maxDepth = result.depth;  // deepest stays the deepest entry in the array
-      }
+      queryObject(static_cast<std::uint32_t>(i), p, r, mode, contacts, capacity, out, caches ? &caches[i] : nullptr);
     }
+  }
+  out.objectsRejected = static_cast<std::uint32_t>(n) - out.objectsQueried - out.objectsInactive;
+}
+
+void SceneDetector::queryObject(std::uint32_t i, const Vec3& p, double r, DetectionMode mode, SceneContact* contacts,
+                                std::size_t capacity, SceneQueryResult& out, QueryCache* cache) const noexcept {
+  const bool spheres = mode == DetectionMode::Spheres;
+  const Object& object = objects_[i];
+  const Vec3 local = object.objectFromWorld * p;
+  // The box is tighter than the sphere for long or flat objects; still no sphere touched.
+  if (object.localBox.exteriorDistance(object.mesh->toLocal(local)) > r + (spheres ? object.boxGrow : 0.0)) {
+    if (cache) cache->lastInside = false;
+    return;
+  }
+  ++out.objectsQueried;
+  ContactResult result;
+  if (object.detector) {
+    object.detector->query(local, r, mode, result, cache);
+  } else if (cache && cache->lastInside && !spheres) {
+    // The stream was inside this object: follow the push beyond r, as a detector with a cache does.
+    result = bruteForceSignedQuery(*object.mesh, local, r);
+    cache->lastInside = result.contact && result.inside;
+    ++out.bruteForce;
+  } else {
+    result = bruteForceQuery(*object.mesh, local, r);
+    if (cache) cache->lastInside = result.contact && result.inside && !spheres;
+    ++out.bruteForce;
+  }
+  if (!result.contact) return;
+  ++out.touched;
+  out.contact = true;
+  // depth is the signed penetration (r + distance with the centre inside): the summed spring grows
+  // while the pointer pushes into any object, and maxDepth names the object pushed deepest.
+  const Vec3 normal = object.worldFromObject.linear() * result.normal;
+  out.penetration += result.depth * normal;
+  if (out.contacts < capacity) {
+    SceneContact& c = contacts[out.contacts];
+    c.object = i;
+    c.local = result;
+    c.point = object.worldFromObject * result.point;
+    c.normal = normal;
+    if (out.deepest < 0 || result.depth > out.maxDepth) {
+      out.deepest = static_cast<std::int32_t>(out.contacts);
+      out.maxDepth = result.depth;
+    }
+    ++out.contacts;
+  } else if (result.depth > out.maxDepth) {
+    out.maxDepth = result.depth;  // deepest stays the deepest entry in the array
+  }
+}
+
+void SceneDetector::query(const Vec3& p, double r, DetectionMode mode, SceneContact* contacts, std::size_t capacity,
+                          SceneQueryResult& out, SceneCaches& caches) const noexcept {
+  const std::size_t n = objects_.size();
+  if (caches.objects.size() != n || caches.inside.size() != n || caches.insideCount > n) {
+    query(p, r, mode, contacts, capacity, out, nullptr);
+    return;
+  }
+  out = SceneQueryResult();
+  if (!validPointer(p, r)) return;
+  const bool spheres = mode == DetectionMode::Spheres;
+  // The neighbourhood: still valid while the pointer stays within its margin of the anchor (an object outside it lay
+  // farther than margin beyond the reach at the anchor), for this radius or a smaller one, in this state of the scene.
+  if (!(caches.sceneVersion == version_ && r <= caches.anchorRadius && spheres == caches.anchorSpheres &&
+        (p - caches.anchor).norm() <= caches.margin)) {
+    caches.sceneVersion = 0;
+    const double margin = kNearMargin * r;
+    const std::size_t listed = tree_.candidates(p, r + margin, spheres, caches.near, SceneCaches::kNear);
+    if (listed > SceneCaches::kNear) {  // a crowd: the flat scan, which touches every cache; redo the inside list
+      query(p, r, mode, contacts, capacity, out, caches.objects.data());
+      caches.insideCount = 0;
+      for (std::uint32_t i = 0; i < n; ++i)
+        if (caches.objects[i].lastInside) caches.inside[caches.insideCount++] = i;
+      return;
+    }
+    std::sort(caches.near, caches.near + listed);  // contacts come in object order
+    caches.nearCount = static_cast<std::uint32_t>(listed);
+    caches.anchor = p;
+    caches.anchorRadius = r;
+    caches.anchorSpheres = spheres;
+    // The tree's test is widened against rounding; the margin is shrunk by as much more, relative to the coordinates.
+    caches.margin = margin * (1.0 - 1e-9) - 1e-12 * (p.cwiseAbs().maxCoeff() + r);
+    caches.sceneVersion = version_;
+  }
+  out.objectsInactive = inactive_;
+  // The bound test on the neighbours (the flat form's, value for value), in object order.
+  std::uint32_t reached[SceneCaches::kNear];
+  std::uint32_t count = 0;
+  for (std::uint32_t k = 0; k < caches.nearCount; ++k)
+    if (reaches(caches.near[k], p, r, spheres)) reached[count++] = caches.near[k];
+  // A push the last answer followed into an object now out of reach ends (the flat form clears every cache).
+  for (std::uint32_t k = 0; k < caches.insideCount; ++k) {
+    const std::uint32_t i = caches.inside[k];
+    if (!std::binary_search(reached, reached + count, i)) caches.objects[i].lastInside = false;
+  }
+  caches.insideCount = 0;
+  for (std::uint32_t k = 0; k < count; ++k) {
+    const std::uint32_t i = reached[k];
+    queryObject(i, p, r, mode, contacts, capacity, out, &caches.objects[i]);
+    if (caches.objects[i].lastInside) caches.inside[caches.insideCount++] = i;
   }
   out.objectsRejected = static_cast<std::uint32_t>(n) - out.objectsQueried - out.objectsInactive;
 }

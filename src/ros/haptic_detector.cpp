@@ -418,7 +418,7 @@ void HapticDetector::answer(const ros::MessageEvent<const geometry_msgs::PoseSta
   const auto mode = static_cast<DetectionMode>(mode_.load(std::memory_order_relaxed));
   SceneQueryResult out;
   const auto start = std::chrono::steady_clock::now();
-  scene_.query(p, radius, mode, contacts_.data(), contacts_.size(), out, caches_.data());
+  scene_.query(p, radius, mode, contacts_.data(), contacts_.size(), out, caches_);
   const auto elapsed = std::chrono::steady_clock::now() - start;
   if (out.bruteForce > 0) bruteForce_.fetch_add(1, std::memory_order_relaxed);
   ProxyTick tick;

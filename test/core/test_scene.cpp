@@ -1,9 +1,11 @@
 // SceneDetector: several objects in different poses answer like bruteForceQuery per object (the test
 // transforms every probe itself), an object moved between queries, the scene-level rejection, levels
-// not ready yet, a full contact array, and a query that allocates nothing.
+// not ready yet, a full contact array, a stream's SceneCaches against the flat scan, and a query that allocates
+// nothing.
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
@@ -11,6 +13,7 @@
 #include <random>
 #include <vector>
 
+#include "allocation_counter.h"
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/errors.h"
@@ -18,8 +21,6 @@
 #include "clod_haptics/core/scene.h"
 #include "clod_haptics/core/sphere_set.h"
 #include "test_helpers.h"
-
-#include "allocation_counter.h"
 
 namespace {
 
@@ -101,13 +102,21 @@ class SceneTest : public ::testing::Test {
     std::uint32_t k = 0;
     Vec3 penetration = Vec3::Zero();
     for (std::uint32_t i = 0; i < scene.size(); ++i) {
+      if (!scene.active(i)) {  // switched off: never answered, and its push ends
+        ASSERT_FALSE(k < out.contacts && contacts[k].object == i) << "inactive object " << scene.name(i);
+        if (followed != nullptr) (*followed)[i] = 0;
+        continue;
+      }
       const bool deep = followed != nullptr && (*followed)[i];
       const ContactResult ref = deep ? bruteForceSignedQuery(*scene.mesh(i), scene.pose(i).inverse() * p, r)
                                      : reference(*scene.mesh(i), scene.pose(i), p, r);
       const bool listed = k < out.contacts && contacts[k].object == i;
       if (followed != nullptr) (*followed)[i] = listed && contacts[k].local.inside;
-      if (onTheEdge(ref, r)) {
-        if (listed) ++k;
+      if (onTheEdge(ref, r)) {  // either answer is right; a listed one still adds to the penetration
+        if (listed) {
+          penetration += contacts[k].local.depth * contacts[k].normal;
+          ++k;
+        }
         continue;
       }
       ASSERT_EQ(listed, ref.contact) << "object " << scene.name(i) << " probe " << p.transpose() << " ref distance "
@@ -361,6 +370,125 @@ TEST_F(SceneTest, QueryAllocatesNothing) {
   gCounting = false;
   EXPECT_EQ(gAllocations.load(), 0);
   EXPECT_GT(touched, 0u);
+  // The same through the tree over the bounds, with a stream's SceneCaches.
+  for (int k = 0; k < 8; ++k)
+    scene.addObject("far_" + std::to_string(k), torus_, torusLevel_,
+                    makePose(1.0 + 0.2 * k, 1.0, 1.0, 0.0, Vec3::UnitZ()));
+  SceneCaches stream;
+  stream.resize(scene.size());
+  touched = 0;
+  gAllocations = 0;
+  gCounting = true;
+  for (const Vec3& p : probes) {
+    scene.query(p, kRadius, DetectionMode::Exact, contacts.data(), contacts.size(), out, stream);
+    touched += out.touched;
+  }
+  gCounting = false;
+  EXPECT_EQ(gAllocations.load(), 0);
+  EXPECT_GT(touched, 0u);
+}
+
+// With a stream's SceneCaches (its neighbourhood found through the tree over the bounds, kept while the pointer stays
+// near) a scene of twenty objects answers exactly what the flat scan answers with an array of caches (every field,
+// every contact, every cache's deep-push flag after each query), and what brute force answers per object: over probes
+// near every object with jumps between them, pushes in deeper than r step by step (the neighbourhood kept) and a
+// jump away and back, a smaller and then a larger radius, objects moved and switched off and on in the middle of
+// the stream (the neighbourhood dropped), and the spheres mode.
+TEST_F(SceneTest, ATreeOverManyObjectsAnswersLikeTheFlatScan) {
+  SceneDetector scene;
+  makeScene(scene);
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int k = 0; k < 16; ++k) {  // around the first four, some overlapping each other's bounds
+    const Eigen::Isometry3d pose =
+        makePose(0.4 * u(rng), 0.4 * u(rng), 0.3 * u(rng), 3.0 * u(rng), Vec3(u(rng), u(rng), 1.0 + 0.5 * u(rng)));
+    if (k % 4 == 3)
+      scene.addObject("box_" + std::to_string(k), box_, boxLevel_, pose);
+    else
+      scene.addObject("torus_" + std::to_string(k), torus_, torusLevel_, pose);
+  }
+  scene.setDetector(7, nullptr);  // brute force on one of them
+  std::vector<Vec3> probes = scenePrabes(scene, 150);
+  std::shuffle(probes.begin(), probes.end(), rng);  // jumps between objects
+  // Pushes along the inward normal from 2 r out to 3 r in, then a jump far away, and back in deep.
+  std::vector<Vec3> pushes;
+  for (std::uint32_t i : {0u, 5u, 9u, 14u}) {
+    const ContactResult c = bruteForceQuery(*scene.mesh(i), nearSurfaceProbes(*scene.mesh(i), 1, 0.0, 3 + i)[0], 1.0);
+    const Vec3 in = -(scene.pose(i).linear() * c.normal), at = scene.pose(i) * c.point;
+    for (int step = -10; step <= 15; ++step) pushes.push_back(at + in * (0.2 * kRadius * step));
+    pushes.push_back(Vec3(5, 5, 5));
+    pushes.push_back(at + in * (3.0 * kRadius));
+  }
+  std::vector<SceneContact> flatContacts(scene.size()), treeContacts(scene.size());
+  std::vector<QueryCache> flatCaches(scene.size());
+  SceneCaches treeCaches;
+  treeCaches.resize(scene.size());
+  std::vector<char> followed(scene.size(), 0);
+  std::size_t queries = 0, touching = 0, deep = 0, fewQueried = 0;
+  std::uint32_t lastContacts = 0;
+  auto compare = [&](const Vec3& p, DetectionMode mode, double r = kRadius) {
+    SceneQueryResult flat, tree;
+    scene.query(p, r, mode, flatContacts.data(), flatContacts.size(), flat, flatCaches.data());
+    scene.query(p, r, mode, treeContacts.data(), treeContacts.size(), tree, treeCaches);
+    ++queries;
+    lastContacts = tree.contacts;
+    ASSERT_EQ(tree.contact, flat.contact);
+    ASSERT_EQ(tree.contacts, flat.contacts);
+    ASSERT_EQ(tree.touched, flat.touched);
+    ASSERT_EQ(tree.deepest, flat.deepest);
+    ASSERT_EQ(tree.maxDepth, flat.maxDepth);
+    ASSERT_EQ(tree.penetration, flat.penetration);
+    ASSERT_EQ(tree.objectsQueried, flat.objectsQueried);
+    ASSERT_EQ(tree.objectsRejected, flat.objectsRejected);
+    ASSERT_EQ(tree.objectsInactive, flat.objectsInactive);
+    ASSERT_EQ(tree.bruteForce, flat.bruteForce);
+    for (std::uint32_t k = 0; k < flat.contacts; ++k) {
+      ASSERT_EQ(treeContacts[k].object, flatContacts[k].object);
+      ASSERT_EQ(treeContacts[k].local.distance, flatContacts[k].local.distance);
+      ASSERT_EQ(treeContacts[k].local.depth, flatContacts[k].local.depth);
+      ASSERT_EQ(treeContacts[k].local.inside, flatContacts[k].local.inside);
+      ASSERT_EQ(treeContacts[k].point, flatContacts[k].point);
+      ASSERT_EQ(treeContacts[k].normal, flatContacts[k].normal);
+    }
+    for (std::uint32_t i = 0; i < scene.size(); ++i)
+      ASSERT_EQ(treeCaches.objects[i].lastInside, flatCaches[i].lastInside) << "object " << i;
+    if (mode == DetectionMode::Exact && r == kRadius) {
+      expectMatchesReference(scene, p, kRadius, treeContacts.data(), tree, &followed);
+      touching += tree.contact;
+      deep += tree.contact && tree.maxDepth > 2.0 * kRadius;
+      fewQueried +=
+          tree.objectsQueried + tree.objectsRejected + tree.objectsInactive == scene.size() && tree.objectsQueried <= 2;
+    }
+  };
+  for (std::size_t k = 0; k < probes.size(); ++k) {
+    if (k == probes.size() / 3) scene.setPose(3, makePose(0.1, -0.1, 0.05, 0.5, Vec3(1, 0, 0)));
+    if (k == probes.size() / 2) scene.setActive(11, false);
+    if (k == 2 * probes.size() / 3) scene.setActive(11, true);
+    compare(probes[k], DetectionMode::Exact);
+    if (HasFatalFailure()) return;
+  }
+  std::size_t movedIn = 0;
+  for (std::size_t k = 0; k < pushes.size(); ++k) {
+    // Mid-push, another object is moved onto the one pushed into: the stream's neighbourhood must see it.
+    if (k == 12) scene.setPose(18, scene.pose(0) * makePose(0, 0, 0, 0.2, Vec3::UnitZ()));
+    compare(pushes[k], DetectionMode::Exact);
+    if (HasFatalFailure()) return;
+    for (std::uint32_t c = 0; c < lastContacts && k >= 12 && k < 26; ++c) movedIn += treeContacts[c].object == 18;
+  }
+  EXPECT_GT(movedIn, 0u) << "the moved object must be touched by the push";
+  for (std::size_t k = 0; k < pushes.size(); ++k) {  // a smaller radius (the neighbourhood holds), then a larger one
+    compare(pushes[k], DetectionMode::Exact, (k / 8) % 2 ? 0.5 * kRadius : 3.0 * kRadius);
+    if (HasFatalFailure()) return;
+  }
+  std::fill(followed.begin(), followed.end(), 0);
+  for (std::uint32_t i = 0; i < scene.size(); ++i) followed[i] = treeCaches.objects[i].lastInside;
+  for (std::size_t k = 0; k < probes.size(); k += 5) {
+    compare(probes[k], DetectionMode::Spheres);
+    if (HasFatalFailure()) return;
+  }
+  EXPECT_GT(touching, queries / 4);
+  EXPECT_GT(deep, 10u) << "the pushes must go deeper than r";
+  EXPECT_GT(fewQueried, queries / 2);
 }
 
 // A scene of one object answers what its detector answers, in every mode: the scene-level bounds never reject a

@@ -1,12 +1,12 @@
 #pragma once
 
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include <Eigen/Geometry>
-
+#include "clod_haptics/core/bound_tree.h"
 #include "clod_haptics/core/contact.h"
 #include "clod_haptics/core/detector.h"
 #include "clod_haptics/core/mesh.h"
@@ -36,13 +36,47 @@ struct SceneQueryResult {
 };
 
 /**
+ * \brief One pointer's stream of scene queries: a QueryCache per object, the objects whose cache its last answer left
+ * inside (the only ones whose deep push a query may have to end), and the objects near where the stream was lately
+ * (a pointer moves little between two queries: while it stays within `margin` of `anchor`, no other object's bound
+ * can be reached, and the query tests those alone). Sized by resize() to the scene's object count (allocates);
+ * SceneDetector::query with it allocates nothing. Owned by the caller, one per stream, not shared between threads.
+ * Reset a stream with resize().
+ */
+struct SceneCaches {
+  std::vector<QueryCache> objects;    ///< one per object, as query(..., QueryCache*) takes them
+  std::vector<std::uint32_t> inside;  ///< [0, insideCount): every object whose cache says lastInside
+  std::uint32_t insideCount = 0;
+  /// The neighbourhood: near[0, nearCount) (ascending) holds every object whose bound lies within margin of the
+  /// reach of a pointer of radius anchorRadius (spheres mode: with the spheres' reach) at anchor, in the scene
+  /// whose state sceneVersion names (SceneDetector::version(); 0: none).
+  static constexpr std::uint32_t kNear = 64;
+  std::uint64_t sceneVersion = 0;
+  Vec3 anchor = Vec3::Zero();
+  double anchorRadius = 0.0, margin = 0.0;
+  bool anchorSpheres = false;
+  std::uint32_t nearCount = 0;
+  std::uint32_t near[kNear] = {};
+  /** \brief Fresh caches for a scene of n objects. */
+  void resize(std::size_t n) {
+    objects.assign(n, QueryCache());
+    inside.assign(n, 0);
+    insideCount = 0;
+    sceneVersion = 0;
+  }
+};
+
+/**
  * \brief Collision detection of one pointer against a scene of objects, each with its own CLOD
  * detector and a world-from-object pose.
  *
  * Skips what the query does not need: each object's bounding sphere is kept in world coordinates in a
  * flat array, and an object whose bound is farther than the pointer radius is rejected before its
  * detector is touched. A surviving object gets the pointer transformed into its frame by a cached
- * inverse pose. Moving an object (setPose) updates two transforms and one bound; nothing is rebuilt.
+ * inverse pose. A stream's SceneCaches keeps the objects near its pointer, found through a box tree over the bounds
+ * (BoundTree) and refreshed when the pointer has moved kNearMargin radii: a query near one object of fifty tests the
+ * bounds of that neighbourhood, not fifty. Moving an object (setPose) updates two transforms, one bound and the
+ * tree's path above it; nothing is rebuilt.
  *
  * query() is const, allocation-free and noexcept. The mutators (addObject, setPose, setDetector,
  * setActive) must not run concurrently with a query: the owner updates poses and queries on one
@@ -74,6 +108,19 @@ class SceneDetector {
    */
   void query(const Vec3& p, double r, DetectionMode mode, SceneContact* contacts, std::size_t capacity,
              SceneQueryResult& out, QueryCache* caches = nullptr) const noexcept;
+  /**
+   * \brief The same with a stream's SceneCaches: the same answers as with caches.objects.data(), and the objects far
+   * from the pointer are not touched at all (the array form writes every object's cache: ending a deep push needs to
+   * know which objects the stream was inside, which the SceneCaches keeps). Caches sized for another object count
+   * answer as without caches.
+   */
+  void query(const Vec3& p, double r, DetectionMode mode, SceneContact* contacts, std::size_t capacity,
+             SceneQueryResult& out, SceneCaches& caches) const noexcept;
+
+  /** \brief A stream's neighbourhood holds the objects within this many pointer radii of its reach. */
+  static constexpr double kNearMargin = 8.0;
+  /** \brief Names the scene's state: changed by every mutator (unique across scenes), what a SceneCaches checks. */
+  std::uint64_t version() const { return version_; }
 
   /** \brief Number of objects. */
   std::size_t size() const { return objects_.size(); }
@@ -111,6 +158,15 @@ class SceneDetector {
   };
   void updateBound(std::uint32_t i);
   void measureSpheres(std::uint32_t i);
+  /** Whether the pointer reaches object i's bounding sphere (NaN, inactive, does not). */
+  bool reaches(std::uint32_t i, const Vec3& p, double r, bool spheres) const {
+    const double dx = p.x() - boundX_[i], dy = p.y() - boundY_[i], dz = p.z() - boundZ_[i];
+    const double reach = boundR_[i] + r + (spheres ? sphereGrow_[i] : 0.0);
+    return dx * dx + dy * dy + dz * dz - reach * reach <= 0.0;  // a - b <= 0 exactly when a <= b
+  }
+  /** One object whose bound the pointer reaches: its box test, its detector, and its share of out. */
+  void queryObject(std::uint32_t i, const Vec3& p, double r, DetectionMode mode, SceneContact* contacts,
+                   std::size_t capacity, SceneQueryResult& out, QueryCache* cache) const noexcept;
 
   // The hot data of the rejection test, one array per coordinate so the test over all objects
   // vectorises: the world centre of each bounding sphere (NaN while the object is inactive, which no
@@ -120,6 +176,9 @@ class SceneDetector {
   std::vector<char> active_;
   std::uint32_t inactive_ = 0;
   std::vector<Object, Eigen::aligned_allocator<Object>> objects_;
+  BoundTree tree_;  // over the bounds above (their spheres-mode grow too), refitted by updateBound and measureSpheres
+  std::uint64_t version_ = 0;  // see version(); set by touch()
+  void touch();
 };
 
 }  // namespace clod_haptics

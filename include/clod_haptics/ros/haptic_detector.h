@@ -198,7 +198,7 @@ class HapticDetector {
   SceneDetector scene_;
   std::vector<ObjectState, Eigen::aligned_allocator<ObjectState>> objects_;
   std::vector<SceneContact> contacts_;                                // query output, one slot per object
-  std::vector<QueryCache> caches_;                                    // temporal coherence, one per object
+  SceneCaches caches_;  // temporal coherence: per object, and near the pointer
   std::vector<SceneContact> startContacts_;                           // outsideEverything's query, one per object
   std::vector<QueryCache> startCaches_;                               // reset to "inside" for its deep search
   SweptScene sweptScene_;                                             // the same objects for the proxy's swept queries
