@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "clod_haptics/core/contact.h"
 #include "clod_haptics/core/errors.h"
@@ -39,9 +40,12 @@ std::uint32_t SweptScene::add(std::shared_ptr<const SweptSphereQuery> query, con
   o.query = std::move(query);
   o.worldFromObject = worldFromObject;
   o.objectFromWorld = worldFromObject.inverse();
-  updateBound(o);
   objects_.push_back(o);
-  return static_cast<std::uint32_t>(objects_.size() - 1);
+  for (std::vector<double>* v : {&boundX_, &boundY_, &boundZ_, &boundR_, &noGrow_}) v->push_back(0.0);
+  const auto index = static_cast<std::uint32_t>(objects_.size() - 1);
+  updateBound(index);
+  tree_.build(boundX_.data(), boundY_.data(), boundZ_.data(), boundR_.data(), noGrow_.data(), objects_.size());
+  return index;
 }
 
 void SweptScene::setPose(std::uint32_t i, const Eigen::Isometry3d& worldFromObject) {
@@ -49,21 +53,33 @@ void SweptScene::setPose(std::uint32_t i, const Eigen::Isometry3d& worldFromObje
   Object& o = objects_.at(i);
   o.worldFromObject = worldFromObject;
   o.objectFromWorld = worldFromObject.inverse();
-  updateBound(o);
+  updateBound(i);
+}
+
+void SweptScene::setActive(std::uint32_t i, bool active) {
+  objects_.at(i).active = active;
+  updateBound(i);
 }
 
 void SweptScene::setQuery(std::uint32_t i, std::shared_ptr<const SweptSphereQuery> query) {
   if (!query) throw InvalidParameter("SweptScene: null query");
   objects_.at(i).query = std::move(query);
-  updateBound(objects_[i]);
+  updateBound(i);
 }
 
-void SweptScene::updateBound(Object& o) {
+void SweptScene::updateBound(std::uint32_t i) {
+  Object& o = objects_[i];
   const TriangleMesh& mesh = *o.query->mesh();
   const Eigen::AlignedBox3d box = mesh.bounds();
   o.boundCentre = o.worldFromObject * mesh.toModel(box.center());
   // Half the diagonal bounds every vertex; the margin covers the pose's rounding.
   o.boundRadius = 0.5 * box.diagonal().norm() * (1.0 + 1e-9) + 1e-9 * o.boundCentre.cwiseAbs().maxCoeff();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  boundX_[i] = o.active ? o.boundCentre.x() : nan;
+  boundY_[i] = o.active ? o.boundCentre.y() : nan;
+  boundZ_[i] = o.active ? o.boundCentre.z() : nan;
+  boundR_[i] = o.boundRadius;
+  tree_.update(i, boundX_.data(), boundY_.data(), boundZ_.data(), boundR_.data(), noGrow_.data());
 }
 
 bool SweptScene::blocksAtStart(std::int32_t object, std::int32_t triangle, const Vec3& a, const Vec3& b, double r,
@@ -78,30 +94,59 @@ bool SweptScene::blocksAtStart(std::int32_t object, std::int32_t triangle, const
   return true;
 }
 
+bool SweptScene::sweepObject(std::size_t i, const Vec3& a, const Vec3& b, double r, std::int32_t hintTriangle,
+                             SweptContact& c) const noexcept {
+  const Object& o = objects_[i];
+  if (!o.active) return false;
+  const double reach = o.boundRadius + r * (1.0 + 1e-9);
+  if (!(squaredDistanceToSegment(o.boundCentre, a, b) <= reach * reach)) return false;
+  o.query->sweep(o.objectFromWorld * a, o.objectFromWorld * b, r, c, hintTriangle);
+  return true;
+}
+
 void SweptScene::sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact& out, std::int32_t hintObject,
                        std::int32_t hintTriangle) const noexcept {
   out = SceneSweptContact{};
   const std::size_t n = objects_.size();
   const bool hinted = hintObject >= 0 && static_cast<std::size_t>(hintObject) < n;
+  // The objects to try: every one, or those the tree lists for the ball around the segment's middle that holds the
+  // capsule (everything within r of the segment lies within r + half its length of the middle), when they fit.
+  std::uint32_t near[64];
+  std::size_t count = n;
+  bool listed = false;
+  if (n > kTreeAbove && a.allFinite() && b.allFinite() && std::isfinite(r)) {
+    const Vec3 middle = 0.5 * (a + b);
+    const double reach = r * (1.0 + 1e-9) + 0.5 * (b - a).norm() * (1.0 + 1e-9) + 1e-12 * middle.cwiseAbs().maxCoeff();
+    const std::size_t found = tree_.candidates(middle, reach, false, near, 64);
+    if (found <= 64) {
+      std::sort(near, near + found);
+      count = found;
+      listed = true;
+    }
+  }
   SweptContact c;
   // The hint's object first, its query given the hint: when it answers with the hinted triangle at 0 (its tie rule),
-  // that is the answer across objects too, and no other object is searched.
-  for (std::size_t k = 0; k < n; ++k) {
-    const std::size_t i = hinted ? (k + static_cast<std::size_t>(hintObject)) % n : k;
+  // that is the answer across objects too, and no other object is searched. The others in index order.
+  const bool hintListed =
+      hinted && (!listed || std::binary_search(near, near + count, static_cast<std::uint32_t>(hintObject)));
+  for (std::size_t k = hintListed ? 0 : 1; k <= count; ++k) {
+    std::size_t i;
+    if (k == 0) {
+      i = static_cast<std::size_t>(hintObject);
+    } else {
+      i = listed ? near[k - 1] : k - 1;
+      if (hintListed && i == static_cast<std::size_t>(hintObject)) continue;  // tried first
+    }
     const bool isHint = hinted && i == static_cast<std::size_t>(hintObject);
-    const Object& o = objects_[i];
-    if (!o.active) continue;
-    const double reach = o.boundRadius + r * (1.0 + 1e-9);
-    if (!(squaredDistanceToSegment(o.boundCentre, a, b) <= reach * reach)) continue;
-    o.query->sweep(o.objectFromWorld * a, o.objectFromWorld * b, r, c, isHint ? hintTriangle : -1);
+    if (!sweepObject(i, a, b, r, isHint ? hintTriangle : -1, c)) continue;
     const std::uint32_t tested = out.contact.trianglesTested + c.trianglesTested;
     out.contact.trianglesTested = tested;
     const bool heldByHint = isHint && c.hit && c.toi == 0.0 && c.triangle == hintTriangle;
-    // Ties to the lowest object (objects are visited from the hint's, not in index order).
+    // Ties to the lowest object (the hint's is tried first, out of order).
     const bool earlier = out.object < 0 || c.toi < out.contact.toi ||
                          (c.toi == out.contact.toi && static_cast<std::int32_t>(i) < out.object);
     if (!c.hit || !(heldByHint || earlier)) continue;
-    out.contact = toWorld(o.worldFromObject, c);
+    out.contact = toWorld(objects_[i].worldFromObject, c);
     out.contact.trianglesTested = tested;
     out.object = static_cast<std::int32_t>(i);
     if (heldByHint) return;

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <random>
 #include <vector>
@@ -86,6 +87,88 @@ TEST(SweptScene, EarliestContactOverPosedObjectsMatchesBruteForce) {
   }
   EXPECT_GT(hits, 100u);
   EXPECT_GT(second, 20u);
+}
+
+// Twelve objects (more than SweptScene::kTreeAbove: the tree over their bounds picks the ones a sweep may reach),
+// some overlapping, two switched off and one moved half-way: every sweep's earliest contact is brute force's over
+// the active objects' world copies, hinted (the last answer's object and triangle, as a proxy gives them) or not.
+TEST(SweptScene, ManyObjectsThroughTheTreeMatchBruteForce) {
+  // Parts of 15 cm in a 3 m room, sweeps up to 0.5 long: a sweep may pass many bounds and reach one only near its end.
+  auto small = [](const TriangleMesh& unit) {
+    std::vector<Vec3> v;
+    for (const Vec3& x : unit.vertices) v.push_back(0.15 * unit.toModel(x));
+    return std::make_shared<const TriangleMesh>(makeMesh(std::move(v), unit.triangles, unit.name));
+  };
+  auto head = small(*clod_test::loadNormalized(clod_test::sharedMesh("head.off")));
+  auto elephant = small(*clod_test::loadNormalized(clod_test::sharedMesh("elephant.off")));
+  std::mt19937_64 rng(8);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  SweptScene scene;
+  std::vector<std::shared_ptr<const TriangleMesh>> meshes;
+  std::vector<Eigen::Isometry3d, Eigen::aligned_allocator<Eigen::Isometry3d>> poses;
+  for (int i = 0; i < 12; ++i) {
+    meshes.push_back(i % 3 == 2 ? elephant : head);
+    poses.push_back(pose(3.0 * u(rng), Vec3(u(rng), u(rng), 1.0), Vec3(0.4 * u(rng), 0.4 * u(rng), 0.1 * u(rng))));
+    scene.add(std::make_shared<const SweptSphereQuery>(meshes.back()), poses.back());
+  }
+  ASSERT_GT(scene.size(), SweptScene::kTreeAbove);
+  std::vector<char> active(12, 1);
+  scene.setActive(4, false);
+  scene.setActive(9, false);
+  active[4] = active[9] = 0;
+  std::vector<TriangleMesh> world;
+  for (int i = 0; i < 12; ++i) world.push_back(moved(*meshes[i], poses[i]));
+  const double r = 0.002;
+  std::size_t hits = 0, hinted = 0, objectsHit = 0;
+  std::vector<char> seen(12, 0);
+  SceneSweptContact last;
+  for (int k = 0; k < 700; ++k) {
+    if (k == 350) {  // object 1 moved onto object 0
+      poses[1] = poses[0] * pose(0.4, Vec3::UnitZ(), Vec3(0.01, 0.0, 0.0));
+      scene.setPose(1, poses[1]);
+      world[1] = moved(*meshes[1], poses[1]);
+    }
+    const std::size_t target = static_cast<std::size_t>(k) % 12;
+    const Vec3 a = k % 4 == 0 ? uniformProbes(world[target], 1, 0.3, 100 + k)[0]
+                              : nearSurfaceProbes(world[target], 1, 3.0 * r, 100 + k)[0];
+    const double length = std::pow(10.0, -3.0 + 2.7 * (0.5 + 0.5 * u(rng)));  // 0.001 to 0.5
+    const Vec3 b = a + length * Vec3(u(rng), u(rng), u(rng)).normalized();
+    const bool useHint = k % 2 == 1 && last.object >= 0;
+    SceneSweptContact got;
+    scene.sweep(a, b, r, got, useHint ? last.object : -1, useHint ? last.contact.triangle : -1);
+    hinted += useHint;
+    SweptContact want;
+    std::int32_t wantObject = -1;
+    double second = std::numeric_limits<double>::infinity();  // the next object's time (ambiguity when close)
+    for (std::size_t i = 0; i < 12; ++i) {
+      if (!active[i]) continue;
+      const SweptContact w = bruteForceSweep(world[i], a, b, r);
+      if (!w.hit) continue;
+      if (wantObject < 0 || w.toi < want.toi) {
+        if (wantObject >= 0) second = std::min(second, want.toi);
+        want = w;
+        wantObject = static_cast<std::int32_t>(i);
+      } else {
+        second = std::min(second, w.toi);
+      }
+    }
+    ASSERT_EQ(got.contact.hit, wantObject >= 0) << k;
+    if (wantObject < 0) continue;
+    ++hits;
+    // Times from two frames agree to rounding of the distance travelled (1e-10 of the coordinates), not bit for bit.
+    EXPECT_NEAR(got.contact.toi * length, want.toi * length, 1e-9) << k;
+    // The same time from two objects (an overlap, a start touching both) may go to either, or to a hint's object.
+    if ((second - want.toi) * length > 1e-9 && !(useHint && got.contact.toi == 0.0))
+      EXPECT_EQ(got.object, wantObject) << k;
+    ASSERT_GE(got.object, 0);
+    EXPECT_TRUE(active[static_cast<std::size_t>(got.object)]) << k;
+    objectsHit += !seen[static_cast<std::size_t>(got.object)];
+    seen[static_cast<std::size_t>(got.object)] = 1;
+    last = got;
+  }
+  EXPECT_GT(hits, 200u);
+  EXPECT_GT(hinted, 200u);
+  EXPECT_GE(objectsHit, 9u) << "sweeps must reach most of the active objects";
 }
 
 TEST(SweptScene, InactiveAndMovedObjects) {

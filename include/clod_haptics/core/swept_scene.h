@@ -5,6 +5,7 @@
 #include <memory>
 #include <vector>
 
+#include "clod_haptics/core/bound_tree.h"
 #include "clod_haptics/core/swept_query.h"
 
 namespace clod_haptics {
@@ -19,7 +20,9 @@ struct SceneSweptContact {
  * \brief The objects that constrain one haptic proxy: per object a SweptSphereQuery and a world-from-object
  * pose. A sweep goes to every object whose bounding sphere the swept capsule reaches (the segment moved into
  * the object's frame by a cached inverse pose; a rigid pose keeps the radius and the time of impact), and the
- * earliest contact wins (ties to the lower object index).
+ * earliest contact wins (ties to the lower object index). Beyond kTreeAbove objects those are found through a box
+ * tree over the bounds (BoundTree, refitted when an object moves): a sweep near one object of fifty tests a few
+ * bounds, not fifty.
  *
  * sweep() is const, allocation-free and noexcept; the mutators must not run concurrently with it.
  */
@@ -35,7 +38,7 @@ class SweptScene {
   /** \brief Swaps object i's query (a new level of the same part). \throws InvalidParameter when null. */
   void setQuery(std::uint32_t i, std::shared_ptr<const SweptSphereQuery> query);
   /** \brief An inactive object is skipped by sweeps (e.g. its pose is unknown). Objects start active. */
-  void setActive(std::uint32_t i, bool active) { objects_[i].active = active; }
+  void setActive(std::uint32_t i, bool active);
 
   /**
    * \brief The first contact of the sphere (radius r) moving a -> b in the world frame, over all objects, ties to
@@ -71,6 +74,8 @@ class SweptScene {
 
   /** \brief Number of objects. */
   std::size_t size() const { return objects_.size(); }
+  /** \brief Above this many objects, sweeps find the bounds they may reach through the tree over them. */
+  static constexpr std::size_t kTreeAbove = 4;
   /** \brief Query of object i. */
   const std::shared_ptr<const SweptSphereQuery>& query(std::uint32_t i) const { return objects_[i].query; }
   /** \brief World-from-object pose of object i. */
@@ -86,8 +91,14 @@ class SweptScene {
     bool active = true;
     EIGEN_MAKE_ALIGNED_OPERATOR_NEW
   };
-  void updateBound(Object& o);
+  void updateBound(std::uint32_t i);
+  /** The sweep's test of object i: whether it is active and the capsule reaches its bound; then its answer. */
+  bool sweepObject(std::size_t i, const Vec3& a, const Vec3& b, double r, std::int32_t hintTriangle,
+                   SweptContact& c) const noexcept;
   std::vector<Object, Eigen::aligned_allocator<Object>> objects_;
+  // The bounds again, one array per coordinate, for the tree (NaN centre: inactive), and the tree over them.
+  std::vector<double> boundX_, boundY_, boundZ_, boundR_, noGrow_;
+  BoundTree tree_;
 };
 
 }  // namespace clod_haptics
