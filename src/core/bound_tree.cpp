@@ -81,7 +81,7 @@ void BoundTree::fitLeaf(std::uint32_t node, const double* x, const double* y, co
       n.lo[a] = std::min(n.lo[a], c[a] - radius[i] - pad);
       n.hi[a] = std::max(n.hi[a], c[a] + radius[i] + pad);
     }
-    n.grow = std::max(n.grow, grow[i] * (1.0 + 1e-12));
+    if (grow != nullptr) n.grow = std::max(n.grow, grow[i] * (1.0 + 1e-12));
   }
 }
 
@@ -113,7 +113,8 @@ std::size_t BoundTree::candidates(const Vec3& p, double r, bool grown, std::uint
   stack[top++] = 0;
   const double px = p.x(), py = p.y(), pz = p.z();
   while (top > 0) {
-    const Node& n = nodes_[stack[--top]];
+    const std::uint32_t index = stack[--top];
+    const Node& n = nodes_[index];
     const double reach = r + (grown ? n.grow : 0.0);
     // The gap on each axis (0 inside); an empty box gives +inf, never within reach.
     const double dx = std::max(0.0, std::max(n.lo[0] - px, px - n.hi[0]));
@@ -127,9 +128,8 @@ std::size_t BoundTree::candidates(const Vec3& p, double r, bool grown, std::uint
       }
       continue;
     }
-    const auto self = static_cast<std::uint32_t>(&n - nodes_.data());
     stack[top++] = n.first;
-    stack[top++] = self + 1;
+    stack[top++] = index + 1;
   }
   return found;
 }

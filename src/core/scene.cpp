@@ -135,11 +135,8 @@ void SceneDetector::query(const Vec3& p, double r, DetectionMode mode, SceneCont
     const double* __restrict bz = boundZ_.data() + base;
     const double* __restrict br = boundR_.data() + base;
     const double* __restrict grow = sphereGrow_.data() + base;
-    for (std::size_t k = 0; k < m; ++k) {
-      const double dx = px - bx[k], dy = py - by[k], dz = pz - bz[k];
-      const double reach = br[k] + r + (spheres ? grow[k] : 0.0);
-      margin[k] = dx * dx + dy * dy + dz * dz - reach * reach;  // a - b <= 0 exactly when a <= b
-    }
+    for (std::size_t k = 0; k < m; ++k)
+      margin[k] = boundMargin(px, py, pz, bx[k], by[k], bz[k], br[k] + r + (spheres ? grow[k] : 0.0));
     for (std::size_t k = 0; k < m; ++k) {
       if (!(margin[k] <= 0.0)) {  // NaN (inactive) fails too
         if (caches) caches[base + k].lastInside = false;  // no contact: a later deep search would be stale

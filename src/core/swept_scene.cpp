@@ -41,10 +41,10 @@ std::uint32_t SweptScene::add(std::shared_ptr<const SweptSphereQuery> query, con
   o.worldFromObject = worldFromObject;
   o.objectFromWorld = worldFromObject.inverse();
   objects_.push_back(o);
-  for (std::vector<double>* v : {&boundX_, &boundY_, &boundZ_, &boundR_, &noGrow_}) v->push_back(0.0);
+  for (std::vector<double>* v : {&boundX_, &boundY_, &boundZ_, &boundR_}) v->push_back(0.0);
   const auto index = static_cast<std::uint32_t>(objects_.size() - 1);
   updateBound(index);
-  tree_.build(boundX_.data(), boundY_.data(), boundZ_.data(), boundR_.data(), noGrow_.data(), objects_.size());
+  tree_.build(boundX_.data(), boundY_.data(), boundZ_.data(), boundR_.data(), nullptr, objects_.size());
   return index;
 }
 
@@ -79,7 +79,7 @@ void SweptScene::updateBound(std::uint32_t i) {
   boundY_[i] = o.active ? o.boundCentre.y() : nan;
   boundZ_[i] = o.active ? o.boundCentre.z() : nan;
   boundR_[i] = o.boundRadius;
-  tree_.update(i, boundX_.data(), boundY_.data(), boundZ_.data(), boundR_.data(), noGrow_.data());
+  tree_.update(i, boundX_.data(), boundY_.data(), boundZ_.data(), boundR_.data(), nullptr);
 }
 
 bool SweptScene::blocksAtStart(std::int32_t object, std::int32_t triangle, const Vec3& a, const Vec3& b, double r,
@@ -125,31 +125,31 @@ void SweptScene::sweep(const Vec3& a, const Vec3& b, double r, SceneSweptContact
     }
   }
   SweptContact c;
-  // The hint's object first, its query given the hint: when it answers with the hinted triangle at 0 (its tie rule),
-  // that is the answer across objects too, and no other object is searched. The others in index order.
-  const bool hintListed =
-      hinted && (!listed || std::binary_search(near, near + count, static_cast<std::uint32_t>(hintObject)));
-  for (std::size_t k = hintListed ? 0 : 1; k <= count; ++k) {
-    std::size_t i;
-    if (k == 0) {
-      i = static_cast<std::size_t>(hintObject);
-    } else {
-      i = listed ? near[k - 1] : k - 1;
-      if (hintListed && i == static_cast<std::size_t>(hintObject)) continue;  // tried first
-    }
+  // One object's answer folded in; true when it is the answer outright (the hint's triangle blocking at 0).
+  auto visit = [&](std::size_t i) {
     const bool isHint = hinted && i == static_cast<std::size_t>(hintObject);
-    if (!sweepObject(i, a, b, r, isHint ? hintTriangle : -1, c)) continue;
+    if (!sweepObject(i, a, b, r, isHint ? hintTriangle : -1, c)) return false;
     const std::uint32_t tested = out.contact.trianglesTested + c.trianglesTested;
     out.contact.trianglesTested = tested;
     const bool heldByHint = isHint && c.hit && c.toi == 0.0 && c.triangle == hintTriangle;
     // Ties to the lowest object (the hint's is tried first, out of order).
     const bool earlier = out.object < 0 || c.toi < out.contact.toi ||
                          (c.toi == out.contact.toi && static_cast<std::int32_t>(i) < out.object);
-    if (!c.hit || !(heldByHint || earlier)) continue;
+    if (!c.hit || !(heldByHint || earlier)) return false;
     out.contact = toWorld(objects_[i].worldFromObject, c);
     out.contact.trianglesTested = tested;
     out.object = static_cast<std::int32_t>(i);
-    if (heldByHint) return;
+    return heldByHint;
+  };
+  // The hint's object first, its query given the hint: when it answers with the hinted triangle at 0 (its tie rule),
+  // that is the answer across objects too, and no other object is searched. The others in index order.
+  const bool hintListed =
+      hinted && (!listed || std::binary_search(near, near + count, static_cast<std::uint32_t>(hintObject)));
+  if (hintListed && visit(static_cast<std::size_t>(hintObject))) return;
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::size_t i = listed ? near[k] : k;
+    if (hintListed && i == static_cast<std::size_t>(hintObject)) continue;  // tried first
+    if (visit(i)) return;
   }
 }
 

@@ -25,7 +25,7 @@ class BoundTree {
  public:
   static constexpr std::uint32_t kLeaf = 4;
 
-  /** \brief Builds over n spheres: centre (x[i], y[i], z[i]), radius[i], grow[i]. Allocates. */
+  /** \brief Builds over n spheres: centre (x[i], y[i], z[i]), radius[i], grow[i] (grow null: none). Allocates. */
   void build(const double* x, const double* y, const double* z, const double* radius, const double* grow,
              std::size_t n);
   /** \brief Sphere i (of the arrays build saw, at the same addresses or copies) changed: refits its path. */

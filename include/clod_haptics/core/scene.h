@@ -158,11 +158,19 @@ class SceneDetector {
   };
   void updateBound(std::uint32_t i);
   void measureSpheres(std::uint32_t i);
+  /**
+   * The bound test's value: squared distance from (px, py, pz) to a bound's centre minus its squared reach, <= 0
+   * exactly when the pointer reaches it (a - b <= 0 exactly when a <= b); NaN (an inactive object) fails that test.
+   * The flat scan and reaches() both compute it here, so they agree value for value.
+   */
+  static double boundMargin(double px, double py, double pz, double cx, double cy, double cz, double reach) {
+    const double dx = px - cx, dy = py - cy, dz = pz - cz;
+    return dx * dx + dy * dy + dz * dz - reach * reach;
+  }
   /** Whether the pointer reaches object i's bounding sphere (NaN, inactive, does not). */
   bool reaches(std::uint32_t i, const Vec3& p, double r, bool spheres) const {
-    const double dx = p.x() - boundX_[i], dy = p.y() - boundY_[i], dz = p.z() - boundZ_[i];
-    const double reach = boundR_[i] + r + (spheres ? sphereGrow_[i] : 0.0);
-    return dx * dx + dy * dy + dz * dz - reach * reach <= 0.0;  // a - b <= 0 exactly when a <= b
+    return boundMargin(p.x(), p.y(), p.z(), boundX_[i], boundY_[i], boundZ_[i],
+                       boundR_[i] + r + (spheres ? sphereGrow_[i] : 0.0)) <= 0.0;
   }
   /** One object whose bound the pointer reaches: its box test, its detector, and its share of out. */
   void queryObject(std::uint32_t i, const Vec3& p, double r, DetectionMode mode, SceneContact* contacts,

@@ -97,7 +97,7 @@ class SweptScene {
                    SweptContact& c) const noexcept;
   std::vector<Object, Eigen::aligned_allocator<Object>> objects_;
   // The bounds again, one array per coordinate, for the tree (NaN centre: inactive), and the tree over them.
-  std::vector<double> boundX_, boundY_, boundZ_, boundR_, noGrow_;
+  std::vector<double> boundX_, boundY_, boundZ_, boundR_;
   BoundTree tree_;
 };
 
