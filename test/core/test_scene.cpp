@@ -486,6 +486,21 @@ TEST_F(SceneTest, ATreeOverManyObjectsAnswersLikeTheFlatScan) {
     compare(probes[k], DetectionMode::Spheres);
     if (HasFatalFailure()) return;
   }
+  // Caches sized for another scene (a caller's mistake): answered as without caches, and left as they were.
+  SceneCaches wrong;
+  wrong.resize(3);
+  wrong.objects[1].lastInside = true;
+  for (std::size_t k = 0; k < probes.size(); k += 7) {
+    SceneQueryResult plain, withWrong;
+    scene.query(probes[k], kRadius, DetectionMode::Exact, flatContacts.data(), flatContacts.size(), plain);
+    scene.query(probes[k], kRadius, DetectionMode::Exact, treeContacts.data(), treeContacts.size(), withWrong, wrong);
+    ASSERT_EQ(withWrong.contacts, plain.contacts);
+    ASSERT_EQ(withWrong.penetration, plain.penetration);
+    ASSERT_EQ(withWrong.objectsQueried, plain.objectsQueried);
+  }
+  EXPECT_EQ(wrong.sceneVersion, 0u);
+  EXPECT_EQ(wrong.insideCount, 0u);
+  EXPECT_TRUE(wrong.objects[1].lastInside);
   EXPECT_GT(touching, queries / 4);
   EXPECT_GT(deep, 10u) << "the pushes must go deeper than r";
   EXPECT_GT(fewQueried, queries / 2);
