@@ -15,7 +15,6 @@ namespace clod_haptics {
 namespace {
 
 constexpr double kNever = std::numeric_limits<double>::infinity();
-constexpr std::size_t kRecord = 17;  // doubles per triangle: ball (centre, radius), unit normal, thickness, corners
 
 // First t in [0, 1] at which the centre a + t d enters the sphere of radius R around v, the centre
 // starting outside it (m = a - v). C / (-B + sqrt(disc)) is the smaller root without cancellation.
@@ -207,12 +206,9 @@ struct SweptSphereQuery::Best {
    * last contact's tangent plane under it, with every neighbouring triangle below: their own planes, tilted towards
    * the centre, cannot tell that.
    */
-  bool below(const double* corners) {
+  bool below(const Vec3& v0, const Vec3& v1, const Vec3& v2) {
     if (!planeReady()) return false;
-    double top = -std::numeric_limits<double>::infinity();
-    for (int k = 0; k < 3; ++k)
-      top = std::max(top, n.x() * corners[3 * k] + n.y() * corners[3 * k + 1] + n.z() * corners[3 * k + 2] - offset);
-    return top < clearance();
+    return std::max({n.dot(v0), n.dot(v1), n.dot(v2)}) - offset < clearance();
   }
   /**
    * The same for everything below a node of the tree over the mesh, from its slab and ball (NodeSlab: every vertex
@@ -334,9 +330,9 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
   if (!mesh_) throw InvalidParameter("SweptSphereQuery: null mesh");
   if (detector_ && detector_->mesh() != mesh_) throw InvalidParameter("SweptSphereQuery: detector of another mesh");
   if (detector_ && !detector_->grid().empty()) grid_ = &detector_->grid();
-  records_.resize(kRecord * mesh_->size());
+  records_.resize(mesh_->size());
   for (std::size_t t = 0; t < mesh_->size(); ++t) {
-    double* rec = records_.data() + kRecord * t;
+    double* rec = records_[t].v;
     const Vec3 &v0 = mesh_->vertex(t, 0), &v1 = mesh_->vertex(t, 1), &v2 = mesh_->vertex(t, 2);
     Vec3 c;
     boundingBall(v0, v1, v2, c, rec[3]);
@@ -348,7 +344,6 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
     for (int k = 0; k < 3; ++k) {
       rec[k] = c[k];
       rec[4 + k] = n[k];
-      for (int j = 0; j < 3; ++j) rec[8 + 3 * k + j] = mesh_->vertex(t, k)[j];
     }
     rec[7] = thick * (1.0 + 1e-9) + 1e-12 * rec[3];  // its own rounding covered
   }
@@ -356,9 +351,7 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
   tree_ = detector_ && detector_->meshTree() ? detector_->meshTree() : meshBoxTreeOf(*mesh_);
 }
 
-const double* SweptSphereQuery::recordOf(std::uint32_t t) const noexcept {
-  return records_.data() + kRecord * static_cast<std::size_t>(t);
-}
+const double* SweptSphereQuery::recordOf(std::uint32_t t) const noexcept { return records_[t].v; }
 
 bool SweptSphereQuery::crowdedAt(const Vec3& local) const noexcept {
   // Most grids have no crowded cell at all: then no lookup.
@@ -381,12 +374,11 @@ void SweptSphereQuery::testRecord(std::uint32_t t, const Vec3& a, const Vec3& d,
   const Vec3 c(rec[0], rec[1], rec[2]);
   const double dd = d.squaredNorm();
   if (planeBoundMisses(c, rec[3], Vec3(rec[4], rec[5], rec[6]), rec[7], a, d, best.reach, best.toi)) return;
-  if (best.below(rec + 8)) return;
+  const Vec3 &v0 = mesh_->vertex(t, 0), &v1 = mesh_->vertex(t, 1), &v2 = mesh_->vertex(t, 2);
+  if (best.below(v0, v1, v2)) return;
   double toi;
   bool start = false;
-  if (exactSweep(a, d, dd, R, Vec3(rec[8], rec[9], rec[10]), Vec3(rec[11], rec[12], rec[13]),
-                 Vec3(rec[14], rec[15], rec[16]), toi, start, best.toi))
-    best.offer(t, toi, start);
+  if (exactSweep(a, d, dd, R, v0, v1, v2, toi, start, best.toi)) best.offer(t, toi, start);
 }
 
 void SweptSphereQuery::sweep(const Vec3& a, const Vec3& b, double r, SweptContact& out,

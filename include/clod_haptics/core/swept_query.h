@@ -135,7 +135,12 @@ class SweptSphereQuery {
   std::shared_ptr<const TriangleMesh> mesh_;
   std::shared_ptr<const ClodDetector> detector_;
   const CellGrid* grid_ = nullptr;  // the detector's grid, null when it has none
-  std::vector<double> records_;  // per triangle: ball (centre, radius), unit normal, thickness, corners (local frame)
+  // Per triangle, what the filters read (ball: centre, radius; unit normal, thickness; local frame), one cache line
+  // each: a record that straddles two lines costs the filter two loads. The exact test reads the mesh's corners.
+  struct alignas(64) Record {
+    double v[8];
+  };
+  std::vector<Record> records_;
   std::shared_ptr<const MeshBoxTree> tree_;  // box tree over the triangles and its slabs (local frame), shared
 };
 
