@@ -550,21 +550,26 @@ void SweptSphereQuery::sweepCell(const CellGrid::CellRef& ref, std::uint64_t key
 #if defined(CLOD_PACKET_AVX2)
   // Eight entries at a time through a float filter that keeps every entry the double test (judge) keeps; the
   // triangles it keeps go on four at a time through the records' ball and plane bounds in AVX2 (looser than the
-  // scalar ones), the survivors to the exact test, in order.
+  // scalar ones), the survivors to the exact test, in order. Up to 16 are held, their records prefetched as they are
+  // admitted: a sweep into a region it has not touched lately waits for each record's line, and 16 loads in flight
+  // wait together (4 at a time, as before, waited about a third longer on the first pass over refined_elephant).
   if (cell.count >= 16 && detail::packetAvx2()) {
-    std::uint32_t batch[4];
+    constexpr int kBatch = 16;
+    std::uint32_t batch[kBatch];
     int held = 0;
     detail::RecordFilterSweep sweep{{a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, 1.0, best.invdd, R, best.reach};
     auto flush = [&]() {
-      if (held == 0) return;
-      const double* record[4];
-      for (int k = 0; k < 4; ++k) record[k] = recordOf(batch[std::min(k, held - 1)]);
-      sweep.end = std::min(1.0, best.toi);  // the rest is the sweep's own
-      const unsigned keep = detail::recordFilterAvx2(record, sweep) & ((1u << held) - 1u);
-      for (int k = 0; k < held; ++k) {
-        if (!(keep & (1u << k))) continue;
-        testRecord(batch[k], a, d, R, best);
-        if (best.toi < end) shrink();
+      for (int base = 0; base < held; base += 4) {
+        const int n = std::min(4, held - base);
+        const double* record[4];
+        for (int k = 0; k < 4; ++k) record[k] = recordOf(batch[base + std::min(k, n - 1)]);
+        sweep.end = std::min(1.0, best.toi);  // the rest is the sweep's own
+        const unsigned keep = detail::recordFilterAvx2(record, sweep) & ((1u << n) - 1u);
+        for (int k = 0; k < n; ++k) {
+          if (!(keep & (1u << k))) continue;
+          testRecord(batch[base + k], a, d, R, best);
+          if (best.toi < end) shrink();
+        }
       }
       held = 0;
     };
@@ -577,15 +582,16 @@ void SweptSphereQuery::sweepCell(const CellGrid::CellRef& ref, std::uint64_t key
       for (unsigned m = detail::cellScanBlockAvx2(cell.entries + i, bounds); m != 0; m &= m - 1) {
         const CellGrid::Entry& e = cell.entries[i + static_cast<std::uint32_t>(__builtin_ctz(m))];
         if (!best.admit(e.triangle)) continue;
+        __builtin_prefetch(recordOf(e.triangle));
         batch[held++] = e.triangle;
-        if (held == 4) flush();
       }
-      flush();
+      if (held + 8 > kBatch) flush();
       if (end != boundsEnd) {  // a contact shortened the piece: tighter bounds for the rest
         boundsEnd = end;
         bounds = detail::cellScanBounds(r0, r1, -along * n0, -along * n1, unit, R + slack, reach);
       }
     }
+    flush();
     if (i + 8 <= cell.count) return;  // stopped by the first entry of a block: sorted, the rest is farther
   }
 #endif
