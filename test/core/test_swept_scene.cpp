@@ -158,8 +158,9 @@ TEST(SweptScene, ManyObjectsThroughTheTreeMatchBruteForce) {
     // Times from two frames agree to rounding of the distance travelled (1e-10 of the coordinates), not bit for bit.
     EXPECT_NEAR(got.contact.toi * length, want.toi * length, 1e-9) << k;
     // The same time from two objects (an overlap, a start touching both) may go to either, or to a hint's object.
-    if ((second - want.toi) * length > 1e-9 && !(useHint && got.contact.toi == 0.0))
+    if ((second - want.toi) * length > 1e-9 && !(useHint && got.contact.toi == 0.0)) {
       EXPECT_EQ(got.object, wantObject) << k;
+    }
     ASSERT_GE(got.object, 0);
     EXPECT_TRUE(active[static_cast<std::size_t>(got.object)]) << k;
     objectsHit += !seen[static_cast<std::size_t>(got.object)];
