@@ -2,7 +2,8 @@
 //
 //   proxy_ticks MESH [--runs N] [--bag BAG] [--only-trajectory]
 //
-// The mesh is scaled to 15 cm as the bench's proxy section does; r = 2 mm, 400 N/m, 1 kHz. Paths: N pushes (default
+// MESH: a mesh file, scaled to 15 cm as the bench's proxy section does, or ellipsoid-edge-E, the section's ellipsoid
+// of 15 x 12 x 9 mm with edges of E r (0.1 and 0.25 there); r = 2 mm, 400 N/m, 1 kHz. Paths: N pushes (default
 // 40) 30 mm long along the inward normal of random surface points at 0.5 and 2 m/s, and the recorded Geomagic
 // trajectory placed over the model from where the stylus is first clear of it (when BAG is given). Each path is run
 // twice from a reset renderer: `1st` finds its region out of the caches, `rep` runs it again. Prints one line per path
@@ -87,12 +88,20 @@ int main(int argc, char** argv) {
     else if (!std::strcmp(argv[i], "--only-trajectory")) onlyTrajectory = true;
   }
   clod_bench::Clock::calibrate();
-  MeshLoadOptions options;
-  options.normalize = true;
-  const TriangleMesh unit = loadMesh(argv[1], options);
-  std::vector<Vec3> v;
-  for (const Vec3& x : unit.vertices) v.push_back(unit.toModel(x) * kSize);
-  auto mesh = std::make_shared<const TriangleMesh>(makeMesh(std::move(v), unit.triangles, unit.name));
+  std::shared_ptr<const TriangleMesh> mesh;
+  const std::string source = argv[1];
+  if (source.rfind("ellipsoid-edge-", 0) == 0) {  // the proxy section's fine ellipsoids: ellipsoid-edge-0.1 (in r)
+    const double edge = std::atof(source.c_str() + std::strlen("ellipsoid-edge-"));
+    mesh = std::make_shared<const TriangleMesh>(
+        clod_bench::ellipsoidWithEdge(Vec3(0.015, 0.012, 0.009), Vec3::Zero(), edge * kR, source));
+  } else {
+    MeshLoadOptions options;
+    options.normalize = true;
+    const TriangleMesh unit = loadMesh(source, options);
+    std::vector<Vec3> v;
+    for (const Vec3& x : unit.vertices) v.push_back(unit.toModel(x) * kSize);
+    mesh = std::make_shared<const TriangleMesh>(makeMesh(std::move(v), unit.triangles, unit.name));
+  }
   auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.003));  // the launch file's d
   auto detector = std::make_shared<const ClodDetector>(mesh, set, FastLevel::Grid, kR);
   SweptScene scene;
