@@ -1,4 +1,4 @@
-// proxy_ticks: the cost of the shipped proxy's ticks on one mesh, for comparing two builds (bench/ab.py).
+// proxy_ticks: the cost of the shipped proxy's ticks on one mesh, for comparing two builds (python3 bench/ab.py).
 //
 //   proxy_ticks MESH [--runs N] [--bag BAG] [--only-trajectory]
 //
@@ -8,7 +8,8 @@
 // trajectory placed over the model from where the stylus is first clear of it (when BAG is given). Each path is run
 // twice from a reset renderer: `1st` finds its region out of the caches, `rep` runs it again. Prints one line per path
 // set and pass: name, pass, ticks, mean, p50, p90, p99, max (ns), and the top 1% of ticks' sweeps and triangles tested.
-// No result files: the numbers drift with this machine's load, so compare builds by alternating them (bench/ab.py).
+// No result files: the numbers drift with this machine's load, so compare builds by alternating them (python3
+// bench/ab.py).
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
@@ -83,9 +84,12 @@ int main(int argc, char** argv) {
   std::string bag;
   bool onlyTrajectory = false;
   for (int i = 2; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--runs") && i + 1 < argc) runs = std::atoi(argv[++i]);
-    else if (!std::strcmp(argv[i], "--bag") && i + 1 < argc) bag = argv[++i];
-    else if (!std::strcmp(argv[i], "--only-trajectory")) onlyTrajectory = true;
+    if (!std::strcmp(argv[i], "--runs") && i + 1 < argc)
+      runs = std::atoi(argv[++i]);
+    else if (!std::strcmp(argv[i], "--bag") && i + 1 < argc)
+      bag = argv[++i];
+    else if (!std::strcmp(argv[i], "--only-trajectory"))
+      onlyTrajectory = true;
   }
   clod_bench::Clock::calibrate();
   std::shared_ptr<const TriangleMesh> mesh;
