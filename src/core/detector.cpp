@@ -126,45 +126,29 @@ constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
 
 constexpr std::size_t kRecord = 13;  // doubles per triangle record: ball (4), corners (9)
 
-// Above this many triangles the grid scan tests its candidates a group behind, their lines prefetched (LookaheadBatch):
+// Above this many triangles the grid scan tests its candidates a group behind, their lines prefetched (TriangleBatch):
 // in-contact probes in random order, interleaved runs, median of 6: refined_elephant (88,928) mean -12 to -21%, p99
 // -21 to -26%; mannequin-devil (25,888) -8% and -12%; head (2,918, in the caches) +16% and +12%, so not there.
 constexpr std::size_t kLookaheadAbove = 16384;
 
 // Gathers triangles for a batch test, capacity (1 to 4) at a time: flush(triangles, count), count in 1..capacity.
+// After lookAhead(), a group is tested only once the next group is full (or at the end): each triangle's index entry
+// is prefetched as it is added, and the next group's corners before a group is tested, so a query whose triangles are
+// out of the caches waits for their lines together rather than group by group. Where they are in the caches (a small
+// mesh) that only delays the narrowing of the scan's bounds: see kLookaheadAbove.
 template <class Flush>
 class TriangleBatch {
  public:
   TriangleBatch(unsigned capacity, Flush flush) : capacity_(capacity), flush_(flush) {}
-  void add(std::uint32_t triangle) {
-    held_[count_++] = triangle;
-    if (count_ == capacity_) finish();
+  /** Tests a group behind, prefetching from the mesh's index and vertices (see above). */
+  void lookAhead(const Triangle* index, const Vec3* vertices) {
+    index_ = index;
+    vertices_ = vertices;
   }
-  void finish() {
-    if (count_ > 0) flush_(held_, count_);
-    count_ = 0;
-  }
-
- private:
-  unsigned capacity_;
-  Flush flush_;
-  std::uint32_t held_[4];
-  unsigned count_ = 0;
-};
-
-// As TriangleBatch, and with ahead, a group is tested only once the next group is full (or at the end): each
-// triangle's index entry is prefetched as it is added, and the next group's corners before a group is tested, so a
-// query whose triangles are out of the caches waits for their lines together rather than group by group. Where they
-// are in the caches (a small mesh) that only delays the narrowing of the scan's bounds: see kLookaheadAbove.
-template <class Flush>
-class LookaheadBatch {
- public:
-  LookaheadBatch(unsigned capacity, bool ahead, Flush flush, const Triangle* index, const Vec3* vertices)
-      : capacity_(capacity), ahead_(ahead), flush_(flush), index_(index), vertices_(vertices) {}
   void add(std::uint32_t triangle) {
-    if (ahead_) __builtin_prefetch(index_ + triangle);
+    if (index_ != nullptr) __builtin_prefetch(index_ + triangle);
     held_[count_++] = triangle;
-    if (count_ == (ahead_ ? 2 * capacity_ : capacity_)) flushFirst();
+    if (count_ == (index_ != nullptr ? 2 * capacity_ : capacity_)) flushFirst();
   }
   void finish() {
     while (count_ > capacity_) flushFirst();
@@ -174,7 +158,7 @@ class LookaheadBatch {
 
  private:
   void flushFirst() {
-    for (unsigned k = capacity_; k < count_; ++k) {
+    for (unsigned k = capacity_; k < count_; ++k) {  // the next group, held only when looking ahead
       const Triangle& t = index_[held_[k]];
       for (int j = 0; j < 3; ++j) __builtin_prefetch(vertices_ + t[j]);
     }
@@ -184,10 +168,9 @@ class LookaheadBatch {
     count_ -= n;
   }
   unsigned capacity_;
-  bool ahead_;
   Flush flush_;
-  const Triangle* index_;
-  const Vec3* vertices_;
+  const Triangle* index_ = nullptr;
+  const Vec3* vertices_ = nullptr;
   std::uint32_t held_[8];
   unsigned count_ = 0;
 };
@@ -550,16 +533,15 @@ inline __attribute__((always_inline)) void ClodDetector::scanCell(const CellGrid
   // Exact mode with AVX2: the candidates that pass the bounds are tested four at a time (testGridBatch); the bounds
   // are judged against the best as it stood before the batch, so a batch may test a candidate the one-by-one scan
   // would have skipped, never the reverse.
-  auto test = [&](const std::uint32_t* t, unsigned count) {
+  TriangleBatch batch(batchSize(mode), [&](const std::uint32_t* t, unsigned count) {
     if constexpr (filling) {
       testGridBatch(t, count, p, mode, best, fill);
       fill->follow(best.reach);
     } else {
       testGridBatch(t, count, p, mode, best);
     }
-  };
-  LookaheadBatch<decltype(test)> batch(batchSize(mode), mesh_->size() > kLookaheadAbove, test, triangleIndex_,
-                                       vertices_);
+  });
+  if (mesh_->size() > kLookaheadAbove) batch.lookAhead(triangleIndex_, vertices_);
   for (std::uint32_t i = 0; i < cell.count; ++i) {
     double reach;
     if constexpr (filling)
