@@ -32,14 +32,7 @@ constexpr double kDt = 1e-3;          // 1 kHz
 constexpr double kSharedSize = 0.15;  // shared meshes scaled from the unit cube to 15 cm
 constexpr double kSpeeds[] = {0.05, 0.5, 2.0};
 
-/** A model with everything both force models need. */
-struct Model {
-  std::string name, kind;
-  double sizeMm = 0.0;  // plate thickness or cylinder diameter; 0 for the shared meshes
-  std::shared_ptr<const TriangleMesh> mesh;
-  std::shared_ptr<const ClodDetector> detector;
-  SweptScene scene;
-};
+}  // namespace
 
 std::unique_ptr<Model> prepare(std::string name, std::string kind, double sizeMm, TriangleMesh mesh) {
   auto m = std::make_unique<Model>();
@@ -52,6 +45,8 @@ std::unique_ptr<Model> prepare(std::string name, std::string kind, double sizeMm
   m->scene.add(std::make_shared<const SweptSphereQuery>(m->mesh, m->detector), Eigen::Isometry3d::Identity());
   return m;
 }
+
+namespace {
 
 // Several closed pieces in one mesh (overlapping where they join, as a modeller's antler would).
 TriangleMesh joined(const std::vector<TriangleMesh>& parts, const std::string& name) {
@@ -85,6 +80,15 @@ TriangleMesh antler() {
   return joined(parts, "antler");
 }
 
+}  // namespace
+
+std::unique_ptr<Model> fineEllipsoid(double edge) {
+  std::ostringstream name;
+  name << "ellipsoid-edge-" << edge << "r";
+  return prepare(name.str(), "fine", edge * kR * 1e3,
+                 ellipsoidWithEdge(Vec3(0.015, 0.012, 0.009), Vec3::Zero(), edge * kR, name.str()));
+}
+
 std::vector<std::unique_ptr<Model>> thinModels() {
   std::vector<std::unique_ptr<Model>> out;
   for (double t : {0.5, 1.0, 2.0, 3.0, 5.0}) {  // square plates 60 mm wide, t thick (a four-sided prism)
@@ -101,12 +105,7 @@ std::vector<std::unique_ptr<Model>> thinModels() {
   out.push_back(prepare("antler", "antler", 3.0, antler()));
   // Finely tessellated surfaces at the stylus's scale (a high-resolution scan): an ellipsoid of semi-axes 15, 12 and
   // 9 mm with edges of 0.25 r and 0.1 r (19k and 122k triangles), where every cell of the grid lists thousands.
-  for (double edge : {0.25, 0.1}) {
-    std::ostringstream name;
-    name << "ellipsoid-edge-" << edge << "r";
-    out.push_back(prepare(name.str(), "fine", edge * kR * 1e3,
-                          ellipsoidWithEdge(Vec3(0.015, 0.012, 0.009), Vec3::Zero(), edge * kR, name.str())));
-  }
+  for (double edge : {0.25, 0.1}) out.push_back(fineEllipsoid(edge));
   return out;
 }
 
@@ -120,6 +119,8 @@ std::unique_ptr<Model> sharedModel(const std::string& path) {
   return prepare(name, "shared", 0.0, makeMesh(std::move(v), unit.triangles, name));
 }
 
+namespace {
+
 // Device points from a to b at speed, one per tick.
 std::vector<Vec3> line(const Vec3& a, const Vec3& b, double speed) {
   const int n = std::max(1, static_cast<int>(std::ceil((b - a).norm() / (speed * kDt))));
@@ -127,6 +128,8 @@ std::vector<Vec3> line(const Vec3& a, const Vec3& b, double speed) {
   for (int i = 0; i <= n; ++i) out.push_back(a + (b - a) * (static_cast<double>(i) / n));
   return out;
 }
+
+}  // namespace
 
 // Straight pushes through the part: plates along -z (tilted up to 30 degrees), cylinders across their axis
 // with an offset that makes contact, shared meshes and fine ellipsoids along the inward normal of a random surface
@@ -175,6 +178,8 @@ ProxyParameters stylus() {
   params.stiffness = kStiffness;
   return params;
 }
+
+namespace {
 
 /** What one force model did over a run. */
 struct Outcome {
