@@ -11,10 +11,13 @@
 // No result files: the numbers drift with this machine's load, so compare builds by alternating them (python3
 // bench/ab.py).
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -70,9 +73,21 @@ int main(int argc, char** argv) {
   clod_bench::Clock::calibrate();
   const std::string source = argv[1];
   const std::string fine = "ellipsoid-edge-";
-  const std::unique_ptr<clod_bench::Model> model =
-      source.rfind(fine, 0) == 0 ? clod_bench::fineEllipsoid(std::atof(source.c_str() + fine.size()))
-                                 : clod_bench::sharedModel(source);
+  std::unique_ptr<clod_bench::Model> model;
+  try {
+    if (source.rfind(fine, 0) == 0) {
+      char* end = nullptr;
+      const double edge = std::strtod(source.c_str() + fine.size(), &end);
+      if (*end != '\0' || !(edge > 0.0) || !std::isfinite(edge))
+        throw std::invalid_argument("the edge (in r) must be a positive number, as in ellipsoid-edge-0.1");
+      model = clod_bench::fineEllipsoid(edge);
+    } else {
+      model = clod_bench::sharedModel(source);
+    }
+  } catch (const std::exception& e) {  // a missing or broken mesh, an edge the ellipsoid cannot take
+    std::fprintf(stderr, "proxy_ticks: %s: %s\n", source.c_str(), e.what());
+    return 1;
+  }
 
   std::vector<std::pair<std::string, std::vector<std::vector<Vec3>>>> sets;
   if (!onlyTrajectory)
