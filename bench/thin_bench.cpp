@@ -3,9 +3,10 @@
 // Hubbard-like medial reference (medial_reference.h) and an octree (tightness.h); also the tight clustering
 // without splitting long triangles (every triangle whole in one sphere). Surface coverage by sampling,
 // outside volume by Monte Carlo (relative to the mesh volume), build time. Writes thin_tightness.csv and, for the
-// pictures, thin_spheres.csv (the spheres of the plate and legs models).
+// pictures, thin_spheres.csv (the spheres of the plates and legs models at 150).
 //
-// usage: thin_bench --shared DIR --out DIR [--quick]
+// usage: thin_bench --shared DIR --out DIR [--quick] [--only NAME[,NAME...]]
+//   --only: just the models named (generated ones by name, shared ones by file name), their spheres dumped too.
 
 #include <algorithm>
 #include <chrono>
@@ -15,6 +16,7 @@
 #include <iostream>
 #include <memory>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -96,13 +98,17 @@ void dumpSpheres(std::ofstream& out, const std::string& model, const std::string
 int main(int argc, char** argv) {
   std::string shared, out;
   bool quick = false;
+  std::vector<std::string> only;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--shared" && i + 1 < argc) shared = argv[++i];
     else if (a == "--out" && i + 1 < argc) out = argv[++i];
     else if (a == "--quick") quick = true;
-    else {
-      std::cerr << "usage: thin_bench --shared DIR --out DIR [--quick]\n";
+    else if (a == "--only" && i + 1 < argc) {
+      std::stringstream names(argv[++i]);
+      for (std::string name; std::getline(names, name, ',');) only.push_back(name);
+    } else {
+      std::cerr << "usage: thin_bench --shared DIR --out DIR [--quick] [--only NAME[,NAME...]]\n";
       return 2;
     }
   }
@@ -127,6 +133,17 @@ int main(int argc, char** argv) {
       if (m.size() < 1000) continue;  // the fixtures (8 triangles, a sheet with a border) hold no volume to compare
       models.push_back({fs::path(p).filename().string(), "shared mesh, normalised", std::move(m)});
     }
+  }
+  if (!only.empty()) {
+    for (const std::string& name : only)
+      if (std::none_of(models.begin(), models.end(), [&](const ThinModel& m) { return m.name == name; })) {
+        std::cerr << "thin_bench: no model named " << name << "\n";
+        return 2;
+      }
+    models.erase(
+        std::remove_if(models.begin(), models.end(),
+                       [&](const ThinModel& m) { return std::find(only.begin(), only.end(), m.name) == only.end(); }),
+        models.end());
   }
   std::ofstream csv(out + "/thin_tightness.csv"), spheres(out + "/thin_spheres.csv");
   csv << "model,triangles,description,target,kind,spheres,d,build_ms,surface_covered,outside_volume_rel,"
@@ -180,7 +197,10 @@ int main(int argc, char** argv) {
                   << " spheres, covered " << m.coverage << ", outside " << m.outside << " (" << m.outside / mm.outside
                   << " x medial)" << (std::isfinite(r.ms) ? ", build " + std::to_string(r.ms) + " ms" : "") << "\n"
                   << std::flush;
-        if (target == 150 && (model.name == "plate-0.03-long" || model.name == "plate-0.015-mixed" || model.name == "legs"))
+        if (!only.empty())
+          dumpSpheres(spheres, model.name, std::string(r.kind) + "@" + std::to_string(target), r.s);
+        else if (target == 150 && (model.name == "plate-0.005" || model.name == "plate-0.03-long" ||
+                                   model.name == "plate-0.015-mixed" || model.name == "legs"))
           dumpSpheres(spheres, model.name, r.kind, r.s);
       }
     }

@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""Pictures of thin_bench's spheres: a plate seen edge-on and a cross-section through the legs.
+"""Pictures of thin_bench's spheres: a plate seen edge-on, a cross-section through the legs and a thin plate seen
+face-on.
 
 usage: thin_plot.py DIR   (reads DIR/thin_spheres.csv, writes DIR/thin_tightness.png)
 """
@@ -17,6 +18,7 @@ KINDS = [("medial-reference", "medial reference"), ("clod-tight", "tight"), ("cl
          ("octree", "octree")]
 PLATE, PLATE_HALF = "plate-0.015-mixed", (0.4, 0.0075)
 LEGS, SECTION_Z = "legs", -0.1
+FACE, FACE_HALF = "plate-0.005", (0.4, 0.25)
 
 
 def load(path):
@@ -40,7 +42,7 @@ def leg_centres():
 
 def main(directory):
     spheres = load(directory + "/thin_spheres.csv")
-    fig, axes = plt.subplots(2, len(KINDS), figsize=(5 * len(KINDS), 7))
+    fig, axes = plt.subplots(3, len(KINDS), figsize=(5 * len(KINDS), 10.5))
     for col, (kind, label) in enumerate(KINDS):
         ax = axes[0][col]
         ax.add_patch(Rectangle((-PLATE_HALF[0], -PLATE_HALF[1]), 2 * PLATE_HALF[0], 2 * PLATE_HALF[1], color="k"))
@@ -65,6 +67,15 @@ def main(directory):
         ax.set_ylim(-0.25, 0.25)
         ax.set_aspect("equal")
         ax.set_title("%s: legs (0.04 thick) cut at z = %.1f, %d spheres cut" % (label, SECTION_Z, cut), fontsize=9)
+        ax = axes[2][col]
+        ax.add_patch(Rectangle((-FACE_HALF[0], -FACE_HALF[1]), 2 * FACE_HALF[0], 2 * FACE_HALF[1], fill=False, color="k"))
+        s = spheres.get((FACE, kind), [])
+        for x, y, z, r in s:
+            ax.add_patch(Circle((x, y), r, fill=False, lw=0.5, color="tab:red"))
+        ax.set_xlim(-0.5, 0.5)
+        ax.set_ylim(-0.32, 0.32)
+        ax.set_aspect("equal")
+        ax.set_title("%s: plate 0.005 seen face-on, %d spheres" % (label, len(s)), fontsize=9)
     fig.tight_layout()
     fig.savefig(directory + "/thin_tightness.png", dpi=110)
 

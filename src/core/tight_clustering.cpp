@@ -656,25 +656,31 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
 // of the radius; each patch's site (its items' centroid by area) moved once by up to kJitter of its reach in a
 // direction fixed by its index; then Lloyd's rounds, up to kSettleRounds: each item goes to the nearest site among
 // the thin patches whose reach (farthest corner from the site) holds its centroid, and the sites move to the new
-// centroids; each centre then goes to its patch's smallest enclosing ball (kBallSteps of Badoiu and Clarkson's
-// steps from the site), and the items that reach beyond kThinRim of the new radius are halved further to kThinFine
-// of it, so that the handing over can give the rim's pieces to the neighbour that holds them deeper. Every radius
-// still reaches every corner of its items (the handing over fits it), so coverage holds as before.
+// centroids; each centre then goes to its patch's smallest enclosing ball (centreThinPatches), and the items that
+// reach beyond kThinRim of the new radius are halved further to kThinFine of it. Lloyd's rounds make the patches
+// compact on average, but the radius is set by the farthest corner: kCentreRounds k-centre rounds on the fine items
+// follow (centreRounds: each item to the patch its farthest corner is nearest to, each centre to its patch's
+// smallest enclosing ball), then the handing over gives the rim's pieces to the neighbour that holds them deeper.
+// Every radius still reaches every corner of its items (the handing over fits it), so coverage holds as before.
 // Chosen on thin_bench's plate-0.005 (bench/results/thin_tightness.md): finer pieces (0.3 and 0.12 of R) gave 5%
-// less volume at three to five times the build; a depth of 0.5 R also took patches of the shared meshes and cost
-// them 2 to 6% (0.3: within 1% either way). Candidates for an item are found once, after the jitter, among the
-// patches whose ball of kReachMargin times their reach holds it. Without the two sides the flat ends of a cylinder
-// 0.05 thick were taken too and settled onto their face (their centres at the surface): 16% more outside at 500
-// spheres.
-constexpr double kThinDepth = 0.3;
-constexpr double kThinFlat = 0.25;
+// less volume at three to five times the build. With the k-centre rounds (2026-11-28), a depth of 0.5 R and a
+// flatness of 0.4 R also take the patches of plates about as thick as the spheres are wide (plate-0.015-mixed and
+// cap-shell-0.01 at 500 spheres: 27% and 16% less outside) and move the shared meshes by under 1% (with Badoiu and
+// Clarkson's steps for the centres and no k-centre rounds, a depth of 0.5 R had cost them 2 to 6%); 10 k-centre
+// rounds instead of 5 gain under 1%. Candidates for an item are found among the patches whose ball of kReachMargin
+// times their reach holds it (once after the jitter for Lloyd's rounds, once before the k-centre rounds). Without
+// the two sides the flat ends of a cylinder 0.05 thick were taken too and settled onto their face (their centres at
+// the surface): 16% more outside at 500 spheres.
+constexpr double kThinDepth = 0.5;
+constexpr double kThinFlat = 0.4;
 constexpr double kTwoSided = 0.5;
 constexpr double kThinCoarse = 0.6;
 constexpr double kThinFine = 0.2;
 constexpr double kThinRim = 0.8;
 constexpr double kJitter = 0.5;
 constexpr int kSettleRounds = 16;
-constexpr int kBallSteps = 32;
+constexpr int kCentreRounds = 5;
+constexpr double kReachMargin = 1.5;
 
 // A point of the cube [-1/2, 1/2]^3 fixed by c (splitmix64).
 Vec3 fixedJitter(std::uint64_t c) {
@@ -696,6 +702,146 @@ std::vector<double> farthestByCluster(const TriangleItems& items, const std::vec
   for (std::size_t i = 0; i < cluster.size(); ++i)
     far2[cluster[i]] = std::max(far2[cluster[i]], farthest2(items.corners[i], centre[cluster[i]]));
   return far2;
+}
+
+// The smallest disc holding the points (Welzl's algorithm, iterative, in the order given; the caller shuffles).
+struct Disc {
+  Eigen::Vector2d c{0.0, 0.0};
+  double r2 = -1.0;
+  bool holds(const Eigen::Vector2d& p) const { return (p - c).squaredNorm() <= r2 * (1.0 + 1e-12) + 1e-300; }
+};
+
+Disc discThrough(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  Disc d;
+  d.c = 0.5 * (a + b);
+  d.r2 = (a - d.c).squaredNorm();
+  return d;
+}
+
+// The circle through three points; for (nearly) collinear ones the disc on the farthest pair.
+Disc discThrough(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
+  const Eigen::Vector2d u = b - a, v = c - a;
+  const double det = 2.0 * (u.x() * v.y() - u.y() * v.x());
+  const double uu = u.squaredNorm(), vv = v.squaredNorm();
+  if (std::abs(det) <= 1e-12 * (uu + vv)) {
+    Disc best = discThrough(a, b);
+    for (const Disc& d : {discThrough(a, c), discThrough(b, c)})
+      if (d.r2 > best.r2) best = d;
+    return best;
+  }
+  Disc d;
+  d.c = a + Eigen::Vector2d(v.y() * uu - u.y() * vv, u.x() * vv - v.x() * uu) / det;
+  d.r2 = (a - d.c).squaredNorm();
+  return d;
+}
+
+Disc smallestDisc(const Eigen::Vector2d* p, std::size_t count) {
+  Disc d;
+  for (std::size_t i = 0; i < count; ++i) {
+    if (d.holds(p[i])) continue;
+    d.c = p[i];
+    d.r2 = 0.0;
+    for (std::size_t j = 0; j < i; ++j) {
+      if (d.holds(p[j])) continue;
+      d = discThrough(p[i], p[j]);
+      for (std::size_t m = 0; m < j; ++m)
+        if (!d.holds(p[m])) d = discThrough(p[i], p[j], p[m]);
+    }
+  }
+  return d;
+}
+
+// A thin patch's plane (the least principal axis of its corners as normal) and how far its corners reached from its
+// centre at the last centring (0 before the first).
+struct PatchFrame {
+  Vec3 mean = Vec3::Zero(), u = Vec3::UnitX(), w = Vec3::UnitY(), normal = Vec3::UnitZ();
+  double reach2 = 0.0;
+  bool set = false;
+};
+
+constexpr double kOuterShare = 0.8;  // squared: corners beyond 0.89 of the last reach go to Welzl first
+
+// Each thin patch's centre: in its plane, the centre of the smallest disc holding its corners; across it, midway
+// between the nearest and farthest corner. Nearly the smallest enclosing ball of a patch of a thin part, found
+// exactly, where Badoiu and Clarkson's steps close in slowly. The disc is first found for the corners beyond
+// kOuterShare of the last reach; the others lie within a known distance of the old centre, so when the disc holds that
+// ball they are inside (the projection only shortens distances), else every corner is taken.
+void centreThinPatches(const TriangleItems& items, const std::vector<char>& thin,
+                       const std::vector<std::uint32_t>& cluster, std::vector<PatchFrame>& frames,
+                       std::vector<Vec3>& centres) {
+  const std::size_t k = centres.size(), n = cluster.size();
+  std::vector<std::uint32_t> begin(k + 1, 0), byCluster(n);
+  for (std::size_t i = 0; i < n; ++i)
+    if (thin[cluster[i]]) ++begin[cluster[i] + 1];
+  for (std::size_t c = 0; c < k; ++c) begin[c + 1] += begin[c];
+  {
+    std::vector<std::uint32_t> next(begin.begin(), begin.end() - 1);
+    for (std::size_t i = 0; i < n; ++i)
+      if (thin[cluster[i]]) byCluster[next[cluster[i]]++] = static_cast<std::uint32_t>(i);
+  }
+  const unsigned threads = detail::threadsFor(n, 0, 4096);
+  detail::runParallel(threads, [&](unsigned t) {
+    std::vector<Eigen::Vector2d> flat;
+    for (std::size_t c = k * t / threads; c < k * (t + 1) / threads; ++c) {
+      if (!thin[c] || begin[c] == begin[c + 1]) continue;
+      PatchFrame& f = frames[c];
+      if (!f.set) {
+        Vec3 mean = Vec3::Zero();
+        Eigen::Matrix3d moments = Eigen::Matrix3d::Zero();
+        for (std::uint32_t j = begin[c]; j < begin[c + 1]; ++j)
+          for (const Vec3& v : items.corners[byCluster[j]]) {
+            mean += v;
+            moments.noalias() += v * v.transpose();
+          }
+        const double m = 3.0 * (begin[c + 1] - begin[c]);
+        mean /= m;
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> axes(moments / m - mean * mean.transpose());
+        if (axes.info() != Eigen::Success) continue;
+        f.mean = mean;
+        f.normal = axes.eigenvectors().col(0);
+        f.w = axes.eigenvectors().col(1);
+        f.u = axes.eigenvectors().col(2);
+        f.set = true;
+      }
+      const Vec3 old = centres[c];
+      const Eigen::Vector2d start((old - f.mean).dot(f.u), (old - f.mean).dot(f.w));
+      auto project = [&](const Vec3& v) { return Eigen::Vector2d((v - f.mean).dot(f.u), (v - f.mean).dot(f.w)); };
+      double lo = kInfinity, hi = -kInfinity, inner2 = 0.0;
+      const double threshold = kOuterShare * f.reach2;
+      flat.clear();
+      for (std::uint32_t j = begin[c]; j < begin[c + 1]; ++j)
+        for (const Vec3& v : items.corners[byCluster[j]]) {
+          const double across = (v - f.mean).dot(f.normal);
+          lo = std::min(lo, across);
+          hi = std::max(hi, across);
+          const double d2 = (v - old).squaredNorm();
+          if (d2 >= threshold)
+            flat.push_back(project(v));
+          else
+            inner2 = std::max(inner2, d2);
+        }
+      std::uint64_t state = 0x9e3779b97f4a7c15ull * (c + 1);
+      auto disc = [&] {
+        // A fixed shuffle: Welzl's expected linear time needs a random order; the items come in space order.
+        for (std::size_t i = flat.size(); i > 1; --i) {
+          state ^= state << 13;
+          state ^= state >> 7;
+          state ^= state << 17;
+          std::swap(flat[i - 1], flat[static_cast<std::size_t>(((state >> 32) * i) >> 32)]);  // i < 2^32
+        }
+        return smallestDisc(flat.data(), flat.size());
+      };
+      Disc d = disc();
+      if (inner2 > 0.0 && (d.c - start).norm() + std::sqrt(inner2) > std::sqrt(std::max(d.r2, 0.0))) {
+        flat.clear();
+        for (std::uint32_t j = begin[c]; j < begin[c + 1]; ++j)
+          for (const Vec3& v : items.corners[byCluster[j]]) flat.push_back(project(v));
+        d = disc();
+      }
+      f.reach2 = d.r2;
+      centres[c] = f.mean + d.c.x() * f.u + d.c.y() * f.w + 0.5 * (lo + hi) * f.normal;
+    }
+  });
 }
 
 // Lloyd's rounds over the thin patches, then each thin centre to its patch's smallest enclosing ball (see kThinDepth):
@@ -724,7 +870,6 @@ void settleThinPatches(const TriangleItems& items, const std::vector<char>& thin
     if (thin[c]) site[c] += kJitter * std::sqrt(reach2[c]) * fixedJitter(c);
   // Candidates, once: the thin patches whose ball about the moved site, kReachMargin times its reach, holds the
   // item's centroid (the sites move little after the first round).
-  constexpr double kReachMargin = 1.5;
   std::vector<double> around(k);
   for (std::size_t c = 0; c < k; ++c) around[c] = kReachMargin * kReachMargin * reach2[c];
   const HolderLists held = ballsHolding(
@@ -762,25 +907,52 @@ void settleThinPatches(const TriangleItems& items, const std::vector<char>& thin
     moveSites();
     if (std::find(moved.begin(), moved.end(), 1) == moved.end()) break;
   }
-  // Smallest enclosing balls: step i moves the centre 1/(i + 1) of the way to the farthest corner.
-  std::vector<Vec3> far(k);
+  // Each centre to its patch's smallest enclosing ball, nearly (centreThinPatches).
   for (std::size_t c = 0; c < k; ++c)
     if (thin[c] && weight[c] > 0.0) centres[c] = site[c];
-  for (int step = 1; step <= kBallSteps; ++step) {
-    std::fill(reach2.begin(), reach2.end(), -1.0);
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::uint32_t c = cluster[i];
-      if (!thin[c]) continue;
-      for (const Vec3& v : items.corners[i]) {
-        const double d2 = (v - centres[c]).squaredNorm();
-        if (d2 > reach2[c]) {
-          reach2[c] = d2;
-          far[c] = v;
+  std::vector<PatchFrame> frames(k);
+  centreThinPatches(items, thin, cluster, frames, centres);
+}
+
+// k-centre rounds over the thin patches' (fine) items, up to kCentreRounds: each item goes to the patch, among those
+// whose ball of kReachMargin times its reach holds its centroid, that its farthest corner is nearest to, and each
+// centre to its patch's smallest enclosing ball (centreThinPatches). Where Lloyd's rounds make the patches compact
+// on average, these lower the largest distance, which sets the radius. Each round is computed from the previous one.
+void centreRounds(const TriangleItems& items, const std::vector<char>& thin, std::vector<Vec3>& centres,
+                  std::vector<std::uint32_t>& cluster) {
+  const std::size_t k = centres.size(), n = cluster.size();
+  const std::vector<double> reach2 = farthestByCluster(items, cluster, centres);
+  std::vector<double> around(k);
+  for (std::size_t c = 0; c < k; ++c) around[c] = kReachMargin * kReachMargin * reach2[c];
+  const HolderLists held = ballsHolding(
+      items, centres, around, [&](std::size_t c) { return thin[c] && reach2[c] > 0.0; },
+      [&](std::size_t item) { return thin[cluster[item]] != 0; }, [](std::size_t, std::uint32_t) { return true; });
+  std::vector<std::uint32_t> next(n);
+  std::vector<PatchFrame> frames(k);
+  for (int round = 0; round < kCentreRounds; ++round) {
+    detail::runParallel(held.threads, [&](unsigned t) {
+      const std::size_t first = n * t / held.threads;
+      for (std::size_t item = first; item < n * (t + 1) / held.threads; ++item) {
+        const std::uint32_t own = cluster[item];
+        next[item] = own;
+        if (!thin[own]) continue;
+        std::uint32_t best = own;
+        double nearest = farthest2(items.corners[item], centres[own]);
+        for (std::uint32_t j = held.start[t][item - first]; j < held.start[t][item - first + 1]; ++j) {
+          const std::uint32_t s = held.list[t][j];
+          const double d2 = farthest2(items.corners[item], centres[s]);
+          if (d2 < nearest || (d2 == nearest && s < best)) {
+            nearest = d2;
+            best = s;
+          }
         }
+        next[item] = best;
       }
-    }
-    for (std::size_t c = 0; c < k; ++c)
-      if (thin[c] && reach2[c] >= 0.0) centres[c] += (far[c] - centres[c]) / (step + 1.0);
+    });
+    const bool same = next == cluster;
+    cluster.swap(next);
+    if (same && round > 0) break;
+    centreThinPatches(items, thin, cluster, frames, centres);
   }
 }
 
@@ -840,7 +1012,7 @@ TriangleItems settleThin(const TriangleItems& treeItems, const std::vector<char>
   settleThinPatches(coarse, thin, centres, cluster);
   radius = farthestByCluster(coarse, cluster, centres);
   // Only pieces reaching beyond the rim are halved on: the fine pieces lie along the patch's edge.
-  return splitItems(
+  TriangleItems fine = splitItems(
       coarse,
       [&](std::size_t item, const TrianglePiece& piece) {
         const std::uint32_t c = cluster[item];
@@ -848,6 +1020,8 @@ TriangleItems settleThin(const TriangleItems& treeItems, const std::vector<char>
                longestEdge2(piece) > kThinFine * kThinFine * radius[c];
       },
       cluster);
+  centreRounds(fine, thin, centres, cluster);
+  return fine;
 }
 
 // The leaves as spheres fitted here (a split triangle's pieces may sit in several leaves): in the order of the

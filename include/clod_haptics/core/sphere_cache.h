@@ -17,9 +17,11 @@ namespace clod_haptics {
  * \brief Version of the binary sphere-set cache format; part of every cache key and file header. 2: tight sets split
  * long triangles over several spheres (a level cached by version 1 still fits its mesh, but is not the level this
  * version builds, so it is not read). 3: tight sets take another principal axis only where it cuts clearly more
- * compact halves (same reason). 4: the checksum is cacheChecksum (four lanes) instead of fnv1a64.
+ * compact halves (same reason). 4: the checksum is cacheChecksum (four lanes) instead of fnv1a64. 5: tight sets'
+ * thin patches get k-centre rounds and a wider thin test (same reason; the thin-patch settling and the hollow rule,
+ * which came after 4, had not bumped it, so a level cached between them could be read as the current one).
  */
-constexpr std::uint32_t kSphereCacheFormatVersion = 4;
+constexpr std::uint32_t kSphereCacheFormatVersion = 5;
 
 /**
  * \brief A 64-bit content hash of a loaded mesh: FNV-1a over the vertex coordinates (after scaling)
