@@ -927,6 +927,11 @@ void centreRounds(const TriangleItems& items, const std::vector<char>& thin, std
   const HolderLists held = ballsHolding(
       items, centres, around, [&](std::size_t c) { return thin[c] && reach2[c] > 0.0; },
       [&](std::size_t item) { return thin[cluster[item]] != 0; }, [](std::size_t, std::uint32_t) { return true; });
+  // Each item's reach from its centroid: a patch whose centre lies farther than the best distance so far plus that
+  // reach cannot be nearer, and is passed over without its three corners (the choice is the same).
+  std::vector<double> spread(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i)
+    if (thin[cluster[i]]) spread[i] = std::sqrt(farthest2(items.corners[i], items.centroid[i]));
   std::vector<std::uint32_t> next(n);
   std::vector<PatchFrame> frames(k);
   for (int round = 0; round < kCentreRounds; ++round) {
@@ -940,6 +945,8 @@ void centreRounds(const TriangleItems& items, const std::vector<char>& thin, std
         double nearest = farthest2(items.corners[item], centres[own]);
         for (std::uint32_t j = held.start[t][item - first]; j < held.start[t][item - first + 1]; ++j) {
           const std::uint32_t s = held.list[t][j];
+          const double gap = std::sqrt(nearest) + spread[item];
+          if ((items.centroid[item] - centres[s]).squaredNorm() > gap * gap * (1.0 + 1e-12)) continue;
           const double d2 = farthest2(items.corners[item], centres[s]);
           if (d2 < nearest || (d2 == nearest && s < best)) {
             nearest = d2;
