@@ -40,19 +40,23 @@ def leg_centres():
     return out
 
 
+def plate(ax, half, filled, spheres, axis, ylim, title):
+    """A plate's rectangle (half sizes) and the spheres' circles in the plane of x and coordinate axis (1: y, 2: z)."""
+    ax.add_patch(Rectangle((-half[0], -half[1]), 2 * half[0], 2 * half[1], fill=filled, color="k"))
+    for sphere in spheres:
+        ax.add_patch(Circle((sphere[0], sphere[axis]), sphere[3], fill=False, lw=0.5, color="tab:red"))
+    ax.set_xlim(-0.5, 0.5)
+    ax.set_ylim(-ylim, ylim)
+    ax.set_aspect("equal")
+    ax.set_title(title % len(spheres), fontsize=9)
+
+
 def main(directory):
     spheres = load(directory + "/thin_spheres.csv")
     fig, axes = plt.subplots(3, len(KINDS), figsize=(5 * len(KINDS), 10.5))
     for col, (kind, label) in enumerate(KINDS):
-        ax = axes[0][col]
-        ax.add_patch(Rectangle((-PLATE_HALF[0], -PLATE_HALF[1]), 2 * PLATE_HALF[0], 2 * PLATE_HALF[1], color="k"))
-        s = spheres.get((PLATE, kind), [])
-        for x, y, z, r in s:
-            ax.add_patch(Circle((x, z), r, fill=False, lw=0.5, color="tab:red"))
-        ax.set_xlim(-0.5, 0.5)
-        ax.set_ylim(-0.25, 0.25)
-        ax.set_aspect("equal")
-        ax.set_title("%s: plate 0.015 seen edge-on, %d spheres" % (label, len(s)), fontsize=9)
+        plate(axes[0][col], PLATE_HALF, True, spheres.get((PLATE, kind), []), 2, 0.25,
+              label + ": plate 0.015 seen edge-on, %d spheres")
         ax = axes[1][col]
         for cx, cy in leg_centres():
             ax.add_patch(Circle((cx, cy), 0.02, color="k"))
@@ -67,15 +71,8 @@ def main(directory):
         ax.set_ylim(-0.25, 0.25)
         ax.set_aspect("equal")
         ax.set_title("%s: legs (0.04 thick) cut at z = %.1f, %d spheres cut" % (label, SECTION_Z, cut), fontsize=9)
-        ax = axes[2][col]
-        ax.add_patch(Rectangle((-FACE_HALF[0], -FACE_HALF[1]), 2 * FACE_HALF[0], 2 * FACE_HALF[1], fill=False, color="k"))
-        s = spheres.get((FACE, kind), [])
-        for x, y, z, r in s:
-            ax.add_patch(Circle((x, y), r, fill=False, lw=0.5, color="tab:red"))
-        ax.set_xlim(-0.5, 0.5)
-        ax.set_ylim(-0.32, 0.32)
-        ax.set_aspect("equal")
-        ax.set_title("%s: plate 0.005 seen face-on, %d spheres" % (label, len(s)), fontsize=9)
+        plate(axes[2][col], FACE_HALF, False, spheres.get((FACE, kind), []), 1, 0.32,
+              label + ": plate 0.005 seen face-on, %d spheres")
     fig.tight_layout()
     fig.savefig(directory + "/thin_tightness.png", dpi=110)
 
