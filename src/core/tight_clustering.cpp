@@ -844,6 +844,50 @@ void centreThinPatches(const TriangleItems& items, const std::vector<char>& thin
   });
 }
 
+// The thin patches near each thin item (for Lloyd's and the k-centre rounds): those with use(c) whose ball about
+// centre[c], kReachMargin times sqrt(reach2[c]), holds the item's centroid.
+template <class Use>
+HolderLists thinCandidates(const TriangleItems& items, const std::vector<char>& thin,
+                           const std::vector<std::uint32_t>& cluster, const std::vector<Vec3>& centre,
+                           const std::vector<double>& reach2, Use&& use) {
+  std::vector<double> around(centre.size());
+  for (std::size_t c = 0; c < centre.size(); ++c) around[c] = kReachMargin * kReachMargin * reach2[c];
+  return ballsHolding(
+      items, centre, around, use, [&](std::size_t item) { return thin[cluster[item]] != 0; },
+      [](std::size_t, std::uint32_t) { return true; });
+}
+
+// One round of reassignment over the thin items: each goes to whichever of its own patch (at own(item)) and its
+// candidates (at candidate(item, s, nearest so far), infinity for one not admitted) is nearest, the lower index on a
+// tie; next[item] out (cluster[item] for the others). Returns whether any item moved.
+template <class Own, class Candidate>
+bool reassign(const HolderLists& held, const std::vector<char>& thin, const std::vector<std::uint32_t>& cluster,
+              std::vector<std::uint32_t>& next, Own&& own, Candidate&& candidate) {
+  const std::size_t n = cluster.size();
+  std::vector<char> moved(held.threads, 0);
+  detail::runParallel(held.threads, [&](unsigned t) {
+    const std::size_t first = n * t / held.threads;
+    for (std::size_t item = first; item < n * (t + 1) / held.threads; ++item) {
+      const std::uint32_t mine = cluster[item];
+      next[item] = mine;
+      if (!thin[mine]) continue;
+      std::uint32_t best = mine;
+      double nearest = own(item);
+      for (std::uint32_t j = held.start[t][item - first]; j < held.start[t][item - first + 1]; ++j) {
+        const std::uint32_t s = held.list[t][j];
+        const double d2 = candidate(item, s, nearest);
+        if (d2 < nearest || (d2 == nearest && s < best)) {
+          nearest = d2;
+          best = s;
+        }
+      }
+      moved[t] = moved[t] || best != mine;
+      next[item] = best;
+    }
+  });
+  return std::find(moved.begin(), moved.end(), 1) != moved.end();
+}
+
 // Lloyd's rounds over the thin patches, then each thin centre to its patch's smallest enclosing ball (see kThinDepth):
 // cluster[item] in, out. Each round is computed from the previous one, so the result does not depend on the threads.
 void settleThinPatches(const TriangleItems& items, const std::vector<char>& thin, std::vector<Vec3>& centres,
@@ -870,42 +914,21 @@ void settleThinPatches(const TriangleItems& items, const std::vector<char>& thin
     if (thin[c]) site[c] += kJitter * std::sqrt(reach2[c]) * fixedJitter(c);
   // Candidates, once: the thin patches whose ball about the moved site, kReachMargin times its reach, holds the
   // item's centroid (the sites move little after the first round).
-  std::vector<double> around(k);
-  for (std::size_t c = 0; c < k; ++c) around[c] = kReachMargin * kReachMargin * reach2[c];
-  const HolderLists held = ballsHolding(
-      items, site, around, [&](std::size_t c) { return thin[c] && weight[c] > 0.0; },
-      [&](std::size_t item) { return thin[cluster[item]] != 0; }, [](std::size_t, std::uint32_t) { return true; });
-  const unsigned threads = held.threads;
-  const auto& candidates = held.list;
-  const auto& starts = held.start;
+  const HolderLists held =
+      thinCandidates(items, thin, cluster, site, reach2, [&](std::size_t c) { return thin[c] && weight[c] > 0.0; });
   std::vector<std::uint32_t> next(n);
   for (int round = 0; round < kSettleRounds; ++round) {
     reach2 = farthestByCluster(items, cluster, site);
-    std::vector<char> moved(threads, 0);
-    detail::runParallel(threads, [&](unsigned t) {
-      const std::size_t first = n * t / threads;
-      for (std::size_t item = first; item < n * (t + 1) / threads; ++item) {
-        const std::uint32_t own = cluster[item];
-        next[item] = own;
-        if (!thin[own]) continue;
-        const Vec3& p = items.centroid[item];
-        std::uint32_t best = own;
-        double nearest = (p - site[own]).squaredNorm();
-        for (std::uint32_t j = starts[t][item - first]; j < starts[t][item - first + 1]; ++j) {
-          const std::uint32_t s = candidates[t][j];
-          const double d2 = (p - site[s]).squaredNorm();
-          if (weight[s] > 0.0 && d2 <= reach2[s] && (d2 < nearest || (d2 == nearest && s < best))) {
-            nearest = d2;
-            best = s;
-          }
-        }
-        moved[t] = moved[t] || best != own;
-        next[item] = best;
-      }
-    });
+    const bool moved = reassign(
+        held, thin, cluster, next,
+        [&](std::size_t item) { return (items.centroid[item] - site[cluster[item]]).squaredNorm(); },
+        [&](std::size_t item, std::uint32_t s, double) {
+          const double d2 = (items.centroid[item] - site[s]).squaredNorm();
+          return weight[s] > 0.0 && d2 <= reach2[s] ? d2 : kInfinity;
+        });
     cluster.swap(next);
     moveSites();
-    if (std::find(moved.begin(), moved.end(), 1) == moved.end()) break;
+    if (!moved) break;
   }
   // Each centre to its patch's smallest enclosing ball, nearly (centreThinPatches).
   for (std::size_t c = 0; c < k; ++c)
@@ -922,11 +945,8 @@ void centreRounds(const TriangleItems& items, const std::vector<char>& thin, std
                   std::vector<std::uint32_t>& cluster) {
   const std::size_t k = centres.size(), n = cluster.size();
   const std::vector<double> reach2 = farthestByCluster(items, cluster, centres);
-  std::vector<double> around(k);
-  for (std::size_t c = 0; c < k; ++c) around[c] = kReachMargin * kReachMargin * reach2[c];
-  const HolderLists held = ballsHolding(
-      items, centres, around, [&](std::size_t c) { return thin[c] && reach2[c] > 0.0; },
-      [&](std::size_t item) { return thin[cluster[item]] != 0; }, [](std::size_t, std::uint32_t) { return true; });
+  const HolderLists held =
+      thinCandidates(items, thin, cluster, centres, reach2, [&](std::size_t c) { return thin[c] && reach2[c] > 0.0; });
   // Each item's reach from its centroid: a patch whose centre lies farther than the best distance so far plus that
   // reach cannot be nearer, and is passed over without its three corners (the choice is the same).
   std::vector<double> spread(n, 0.0);
@@ -935,30 +955,16 @@ void centreRounds(const TriangleItems& items, const std::vector<char>& thin, std
   std::vector<std::uint32_t> next(n);
   std::vector<PatchFrame> frames(k);
   for (int round = 0; round < kCentreRounds; ++round) {
-    detail::runParallel(held.threads, [&](unsigned t) {
-      const std::size_t first = n * t / held.threads;
-      for (std::size_t item = first; item < n * (t + 1) / held.threads; ++item) {
-        const std::uint32_t own = cluster[item];
-        next[item] = own;
-        if (!thin[own]) continue;
-        std::uint32_t best = own;
-        double nearest = farthest2(items.corners[item], centres[own]);
-        for (std::uint32_t j = held.start[t][item - first]; j < held.start[t][item - first + 1]; ++j) {
-          const std::uint32_t s = held.list[t][j];
+    const bool moved = reassign(
+        held, thin, cluster, next,
+        [&](std::size_t item) { return farthest2(items.corners[item], centres[cluster[item]]); },
+        [&](std::size_t item, std::uint32_t s, double nearest) {
           const double gap = std::sqrt(nearest) + spread[item];
-          if ((items.centroid[item] - centres[s]).squaredNorm() > gap * gap * (1.0 + 1e-12)) continue;
-          const double d2 = farthest2(items.corners[item], centres[s]);
-          if (d2 < nearest || (d2 == nearest && s < best)) {
-            nearest = d2;
-            best = s;
-          }
-        }
-        next[item] = best;
-      }
-    });
-    const bool same = next == cluster;
+          if ((items.centroid[item] - centres[s]).squaredNorm() > gap * gap * (1.0 + 1e-12)) return kInfinity;
+          return farthest2(items.corners[item], centres[s]);
+        });
     cluster.swap(next);
-    if (same && round > 0) break;
+    if (!moved && round > 0) break;
     centreThinPatches(items, thin, cluster, frames, centres);
   }
 }
