@@ -704,6 +704,26 @@ std::vector<double> farthestByCluster(const TriangleItems& items, const std::vec
   return far2;
 }
 
+// The items by cluster, those of the clusters with keep(c) (a counting sort: ascending within a cluster): cluster c's
+// items are item[begin[c]] .. item[begin[c + 1] - 1].
+struct ItemsByCluster {
+  std::vector<std::uint32_t> begin, item;
+};
+
+template <class Keep>
+ItemsByCluster itemsByCluster(const std::vector<std::uint32_t>& cluster, std::size_t k, Keep&& keep) {
+  ItemsByCluster out;
+  out.begin.assign(k + 1, 0);
+  for (const std::uint32_t c : cluster)
+    if (keep(c)) ++out.begin[c + 1];
+  for (std::size_t c = 0; c < k; ++c) out.begin[c + 1] += out.begin[c];
+  out.item.resize(out.begin[k]);
+  std::vector<std::uint32_t> next(out.begin.begin(), out.begin.end() - 1);
+  for (std::size_t i = 0; i < cluster.size(); ++i)
+    if (keep(cluster[i])) out.item[next[cluster[i]]++] = static_cast<std::uint32_t>(i);
+  return out;
+}
+
 // The smallest disc holding the points (Welzl's algorithm, iterative, in the order given; the caller shuffles).
 struct Disc {
   Eigen::Vector2d c{0.0, 0.0};
@@ -770,15 +790,9 @@ void centreThinPatches(const TriangleItems& items, const std::vector<char>& thin
                        const std::vector<std::uint32_t>& cluster, std::vector<PatchFrame>& frames,
                        std::vector<Vec3>& centres) {
   const std::size_t k = centres.size(), n = cluster.size();
-  std::vector<std::uint32_t> begin(k + 1, 0), byCluster(n);
-  for (std::size_t i = 0; i < n; ++i)
-    if (thin[cluster[i]]) ++begin[cluster[i] + 1];
-  for (std::size_t c = 0; c < k; ++c) begin[c + 1] += begin[c];
-  {
-    std::vector<std::uint32_t> next(begin.begin(), begin.end() - 1);
-    for (std::size_t i = 0; i < n; ++i)
-      if (thin[cluster[i]]) byCluster[next[cluster[i]]++] = static_cast<std::uint32_t>(i);
-  }
+  const ItemsByCluster sorted = itemsByCluster(cluster, k, [&](std::uint32_t c) { return thin[c] != 0; });
+  const std::vector<std::uint32_t>& begin = sorted.begin;
+  const std::vector<std::uint32_t>& byCluster = sorted.item;
   const unsigned threads = detail::threadsFor(n, 0, 4096);
   detail::runParallel(threads, [&](unsigned t) {
     std::vector<Eigen::Vector2d> flat;
@@ -1064,12 +1078,10 @@ std::uint32_t listLeaves(const std::vector<std::vector<Leaf>>& groups, const std
   const TriangleItems& items = settled.triangle.empty() ? treeItems : settled;
   const std::vector<double> radii = shrinkByHandingOver(items, leafCentres, open, cluster);
   // Items by sphere (a counting sort), the spheres without items dropped.
-  std::vector<std::uint32_t> begin(leafCentres.size() + 1, 0), byCluster(cluster.size());
-  for (const std::uint32_t c : cluster) ++begin[c + 1];
-  for (std::size_t c = 0; c < leafCentres.size(); ++c) begin[c + 1] += begin[c];
-  std::vector<std::uint32_t> next(begin.begin(), begin.end() - 1), renumber(leafCentres.size(), kNone);
-  for (std::size_t item = 0; item < cluster.size(); ++item)
-    byCluster[next[cluster[item]]++] = static_cast<std::uint32_t>(item);
+  const ItemsByCluster sorted = itemsByCluster(cluster, leafCentres.size(), [](std::uint32_t) { return true; });
+  const std::vector<std::uint32_t>& begin = sorted.begin;
+  const std::vector<std::uint32_t>& byCluster = sorted.item;
+  std::vector<std::uint32_t> renumber(leafCentres.size(), kNone);
   lists = ClusterLists{};
   lists.offsets.push_back(0);
   centres.clear();
