@@ -63,12 +63,22 @@ int main(int argc, char** argv) {
   std::string bag;
   bool onlyTrajectory = false;
   for (int i = 2; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--runs") && i + 1 < argc)
-      runs = std::atoi(argv[++i]);
-    else if (!std::strcmp(argv[i], "--bag") && i + 1 < argc)
+    if (!std::strcmp(argv[i], "--runs") && i + 1 < argc) {
+      char* end = nullptr;
+      const long n = std::strtol(argv[++i], &end, 10);
+      if (*end != '\0' || n < 1 || n > 100000) {
+        std::fprintf(stderr, "proxy_ticks: --runs takes a whole number from 1 to 100000, got '%s'\n", argv[i]);
+        return 2;
+      }
+      runs = static_cast<int>(n);
+    } else if (!std::strcmp(argv[i], "--bag") && i + 1 < argc) {
       bag = argv[++i];
-    else if (!std::strcmp(argv[i], "--only-trajectory"))
+    } else if (!std::strcmp(argv[i], "--only-trajectory")) {
       onlyTrajectory = true;
+    } else {
+      std::fprintf(stderr, "proxy_ticks: unknown or incomplete argument '%s'\n", argv[i]);
+      return 2;
+    }
   }
   clod_bench::Clock::calibrate();
   const std::string source = argv[1];
