@@ -210,29 +210,70 @@ bool hasLongItem(const TriangleItems& items, double maxEdge) {
 // The items with each item k replaced by its pieces, a piece halved while split(k, piece) asks (halveWhile,
 // continuing the item's own halvings, in order); cluster (by item; may be empty) follows.
 // A piece keeps its triangle's depth hint; its mean point is its triangle's, moved by as much as its centroid is
-// from the triangle's.
+// from the triangle's. Each thread halves its own run of items, and the runs are joined in order: the same pieces
+// in the same order whatever the threads (split is called from several threads at once and must only read).
 template <class Split>
 TriangleItems splitItems(const TriangleItems& whole, Split&& split, std::vector<std::uint32_t>& cluster) {
-  TriangleItems items;
-  std::vector<std::uint32_t> firstPiece(whole.triangle.size()), pieceCluster;
-  for (std::size_t k = 0; k < whole.triangle.size(); ++k) {
-    firstPiece[k] = static_cast<std::uint32_t>(items.triangle.size());
-    const int done = whole.halvings[k];
-    halveWhile(
-        whole.corners[k], kMaxPieceDepth - done, done, [&](const TrianglePiece& piece) { return split(k, piece); },
-        [&](const TrianglePiece& piece, int depth) {
-          const Vec3 centroid = (piece[0] + piece[1] + piece[2]) / 3.0;
-          items.triangle.push_back(whole.triangle[k]);
-          items.depthSum.push_back(whole.depthSum[k]);
-          items.depthCount.push_back(whole.depthCount[k]);
-          const double points = whole.depthCount[k];
-          items.pointSum.push_back(whole.pointSum[k] + points * (centroid - whole.centroid[k]));
-          items.centroid.push_back(centroid);
-          items.corners.push_back(piece);
-          items.halvings.push_back(static_cast<std::uint8_t>(depth));
-          if (!cluster.empty()) pieceCluster.push_back(cluster[k]);
-        });
+  const std::size_t n = whole.triangle.size();
+  const unsigned threads = detail::threadsFor(n, 0, 2048);
+  std::vector<TriangleItems> runs(threads);
+  std::vector<std::vector<std::uint32_t>> runCluster(threads);
+  std::vector<std::uint32_t> firstPiece(n);  // within its run first, then overall
+  detail::runParallel(threads, [&](unsigned t) {
+    TriangleItems& items = runs[t];
+    std::vector<std::uint32_t>& pieceCluster = runCluster[t];
+    for (std::size_t k = n * t / threads; k < n * (t + 1) / threads; ++k) {
+      firstPiece[k] = static_cast<std::uint32_t>(items.triangle.size());
+      const int done = whole.halvings[k];
+      halveWhile(
+          whole.corners[k], kMaxPieceDepth - done, done, [&](const TrianglePiece& piece) { return split(k, piece); },
+          [&](const TrianglePiece& piece, int depth) {
+            const Vec3 centroid = (piece[0] + piece[1] + piece[2]) / 3.0;
+            items.triangle.push_back(whole.triangle[k]);
+            items.depthSum.push_back(whole.depthSum[k]);
+            items.depthCount.push_back(whole.depthCount[k]);
+            const double points = whole.depthCount[k];
+            items.pointSum.push_back(whole.pointSum[k] + points * (centroid - whole.centroid[k]));
+            items.centroid.push_back(centroid);
+            items.corners.push_back(piece);
+            items.halvings.push_back(static_cast<std::uint8_t>(depth));
+            if (!cluster.empty()) pieceCluster.push_back(cluster[k]);
+          });
+    }
+  });
+  if (threads == 1) {
+    TriangleItems& items = runs[0];
+    items.itemOfPoint.resize(whole.itemOfPoint.size());
+    for (std::size_t i = 0; i < whole.itemOfPoint.size(); ++i) items.itemOfPoint[i] = firstPiece[whole.itemOfPoint[i]];
+    cluster.swap(runCluster[0]);
+    return std::move(items);
   }
+  std::vector<std::size_t> offset(threads + 1, 0);
+  for (unsigned t = 0; t < threads; ++t) offset[t + 1] = offset[t] + runs[t].triangle.size();
+  const std::size_t total = offset[threads];
+  TriangleItems items;
+  items.triangle.resize(total);
+  items.depthSum.resize(total);
+  items.depthCount.resize(total);
+  items.pointSum.resize(total);
+  items.centroid.resize(total);
+  items.corners.resize(total);
+  items.halvings.resize(total);
+  std::vector<std::uint32_t> pieceCluster(cluster.empty() ? 0 : total);
+  detail::runParallel(threads, [&](unsigned t) {
+    const TriangleItems& run = runs[t];
+    const std::size_t at = offset[t];
+    std::copy(run.triangle.begin(), run.triangle.end(), items.triangle.begin() + at);
+    std::copy(run.depthSum.begin(), run.depthSum.end(), items.depthSum.begin() + at);
+    std::copy(run.depthCount.begin(), run.depthCount.end(), items.depthCount.begin() + at);
+    std::copy(run.pointSum.begin(), run.pointSum.end(), items.pointSum.begin() + at);
+    std::copy(run.centroid.begin(), run.centroid.end(), items.centroid.begin() + at);
+    std::copy(run.corners.begin(), run.corners.end(), items.corners.begin() + at);
+    std::copy(run.halvings.begin(), run.halvings.end(), items.halvings.begin() + at);
+    std::copy(runCluster[t].begin(), runCluster[t].end(), pieceCluster.begin() + at);
+    for (std::size_t k = n * t / threads; k < n * (t + 1) / threads; ++k)
+      firstPiece[k] += static_cast<std::uint32_t>(at);
+  });
   items.itemOfPoint.resize(whole.itemOfPoint.size());
   for (std::size_t i = 0; i < whole.itemOfPoint.size(); ++i) items.itemOfPoint[i] = firstPiece[whole.itemOfPoint[i]];
   cluster.swap(pieceCluster);
@@ -532,17 +573,22 @@ inline double farthest2(const TrianglePiece& corners, const Vec3& c) {
 }
 
 // For each item, the spheres c with use(c) whose ball (centre[c], sqrt(reach2[c])) holds the item's centroid and
-// that accept(item, c) takes, found through a box tree over those balls; per thread, its own run of items
-// (threadsFor(n, 0, 4096)), as list[t][start[t][i - first] .. start[t][i - first + 1]) for item i of thread t's run
-// beginning at first. An item that want(item) declines gets an empty list. Empty lists for all when no ball is used.
+// that accept(item, c) takes; per thread, its own run of items (threadsFor(n, 0, 4096)), as
+// list[t][start[t][i - first] .. start[t][i - first + 1]) for item i of thread t's run beginning at first. An item
+// that want(item) declines gets an empty list. Empty lists for all when no ball is used. The items of one cluster
+// (cluster[item], of k) lie close together and meet the same few balls: a box tree over the balls lists, once per
+// cluster, those that meet the box of its wanted items' centroids, and each item tests only those (a tree walk per
+// item cost as much as everything else of a thin plate's settling). The lists hold the same spheres as a walk per
+// item would, in another order (their callers pick the least by value, then by index: the order does not matter).
 struct HolderLists {
   unsigned threads = 1;
   std::vector<std::vector<std::uint32_t>> list, start;
 };
 
 template <class Use, class Want, class Accept>
-HolderLists ballsHolding(const TriangleItems& items, const std::vector<Vec3>& centre, const std::vector<double>& reach2,
-                         Use&& use, Want&& want, Accept&& accept) {
+HolderLists ballsHolding(const TriangleItems& items, const std::vector<std::uint32_t>& cluster, std::size_t k,
+                         const std::vector<Vec3>& centre, const std::vector<double>& reach2, Use&& use, Want&& want,
+                         Accept&& accept) {
   const std::size_t n = items.centroid.size();
   std::vector<Eigen::AlignedBox3d> balls;
   std::vector<std::uint32_t> sphereOf;
@@ -560,28 +606,53 @@ HolderLists ballsHolding(const TriangleItems& items, const std::vector<Vec3>& ce
   std::vector<std::uint32_t> order;
   const bool none = buildBoxTree(balls, 4, 0.0, nodes, order) == kNone;
   for (std::uint32_t& j : order) j = sphereOf[j];
-  detail::runParallel(out.threads, [&](unsigned t) {
+  // Each cluster's wanted centroids' box, and the balls that meet it (a ball holding a centroid meets the box).
+  std::vector<char> wanted(n, 0);
+  std::vector<Eigen::AlignedBox3d> spread(k);  // empty until extended
+  if (!none)
+    for (std::size_t item = 0; item < n; ++item)
+      if ((wanted[item] = want(item) ? 1 : 0)) spread[cluster[item]].extend(items.centroid[item]);
+  std::vector<std::uint32_t> meetStart(k + 1, 0), meet;
+  for (std::size_t c = 0; c < k; ++c) {
+    meetStart[c] = static_cast<std::uint32_t>(meet.size());
+    if (spread[c].isEmpty()) continue;
+    const Vec3 lo = spread[c].min(), hi = spread[c].max();
     std::uint32_t stack[64];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const BoxNode& node = nodes[stack[--top]];
+      double gap2 = 0.0;
+      for (int a = 0; a < 3; ++a) {
+        const double g = std::max({0.0, node.lo[a] - hi[a], lo[a] - node.hi[a]});
+        gap2 += g * g;
+      }
+      if (gap2 > 0.0) continue;
+      if (node.count == 0) {
+        stack[top++] = node.first;
+        stack[top++] = static_cast<std::uint32_t>(&node - nodes.data()) + 1;
+        continue;
+      }
+      for (std::uint32_t j = node.first; j < node.first + node.count; ++j) {
+        const std::uint32_t s = order[j];
+        // The ball's distance to the box, with a margin for its rounding: never fewer than the items' own tests.
+        const Vec3 q = centre[s].cwiseMax(lo).cwiseMin(hi);
+        if ((q - centre[s]).squaredNorm() <= reach2[s] * (1.0 + 1e-9)) meet.push_back(s);
+      }
+    }
+  }
+  meetStart[k] = static_cast<std::uint32_t>(meet.size());
+  detail::runParallel(out.threads, [&](unsigned t) {
     std::vector<std::uint32_t>& list = out.list[t];
     std::vector<std::uint32_t>& start = out.start[t];
     for (std::size_t item = n * t / out.threads; item < n * (t + 1) / out.threads; ++item) {
       start.push_back(static_cast<std::uint32_t>(list.size()));
-      if (none || !want(item)) continue;
+      if (none || !wanted[item]) continue;
       const Vec3& p = items.centroid[item];
-      int top = 0;
-      stack[top++] = 0;
-      while (top > 0) {
-        const BoxNode& node = nodes[stack[--top]];
-        if (squaredDistanceToNode(node, p.x(), p.y(), p.z()) > 0.0) continue;
-        if (node.count == 0) {
-          stack[top++] = node.first;
-          stack[top++] = static_cast<std::uint32_t>(&node - nodes.data()) + 1;
-          continue;
-        }
-        for (std::uint32_t j = node.first; j < node.first + node.count; ++j) {
-          const std::uint32_t c = order[j];
-          if ((p - centre[c]).squaredNorm() <= reach2[c] && accept(item, c)) list.push_back(c);
-        }
+      const std::uint32_t own = cluster[item];
+      for (std::uint32_t j = meetStart[own]; j < meetStart[own + 1]; ++j) {
+        const std::uint32_t c = meet[j];
+        if ((p - centre[c]).squaredNorm() <= reach2[c] && accept(item, c)) list.push_back(c);
       }
     }
     start.push_back(static_cast<std::uint32_t>(list.size()));
@@ -613,7 +684,7 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
   // Candidates, once: the open spheres that hold the item at the first radii, and its own. Radii only shrink, so
   // no other sphere can hold it in a later round. (A ball holding the item holds its centroid.)
   const HolderLists held = ballsHolding(
-      items, centres, far2, [&](std::size_t c) { return open[c] != 0; }, [](std::size_t) { return true; },
+      items, cluster, k, centres, far2, [&](std::size_t c) { return open[c] != 0; }, [](std::size_t) { return true; },
       [&](std::size_t item, std::uint32_t c) { return farthest2(items.corners[item], centres[c]) <= far2[c]; });
   const unsigned threads = held.threads;
   const auto& candidates = held.list;
@@ -867,7 +938,7 @@ HolderLists thinCandidates(const TriangleItems& items, const std::vector<char>& 
   std::vector<double> around(centre.size());
   for (std::size_t c = 0; c < centre.size(); ++c) around[c] = kReachMargin * kReachMargin * reach2[c];
   return ballsHolding(
-      items, centre, around, use, [&](std::size_t item) { return thin[cluster[item]] != 0; },
+      items, cluster, centre.size(), centre, around, use, [&](std::size_t item) { return thin[cluster[item]] != 0; },
       [](std::size_t, std::uint32_t) { return true; });
 }
 
