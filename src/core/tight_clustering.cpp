@@ -210,47 +210,26 @@ bool hasLongItem(const TriangleItems& items, double maxEdge) {
 // The items with each item k replaced by its pieces, a piece halved while split(k, piece) asks (halveWhile,
 // continuing the item's own halvings, in order); cluster (by item; may be empty) follows.
 // A piece keeps its triangle's depth hint; its mean point is its triangle's, moved by as much as its centroid is
-// from the triangle's. Each thread halves its own run of items, and the runs are joined in order: the same pieces
-// in the same order whatever the threads (split is called from several threads at once and must only read).
+// from the triangle's. Two passes, each thread over its own run of items: the pieces are counted, then written where
+// they go (the same pieces in the same order whatever the threads; split is called from several threads at once
+// and must only read).
 template <class Split>
 TriangleItems splitItems(const TriangleItems& whole, Split&& split, std::vector<std::uint32_t>& cluster) {
   const std::size_t n = whole.triangle.size();
   const unsigned threads = detail::threadsFor(n, 0, 2048);
-  std::vector<TriangleItems> runs(threads);
-  std::vector<std::vector<std::uint32_t>> runCluster(threads);
-  std::vector<std::uint32_t> firstPiece(n);  // within its run first, then overall
+  std::vector<std::uint32_t> firstPiece(n + 1, 0);
+  auto halve = [&](std::size_t k, auto&& visit) {
+    const int done = whole.halvings[k];
+    halveWhile(
+        whole.corners[k], kMaxPieceDepth - done, done, [&](const TrianglePiece& piece) { return split(k, piece); },
+        visit);
+  };
   detail::runParallel(threads, [&](unsigned t) {
-    TriangleItems& items = runs[t];
-    std::vector<std::uint32_t>& pieceCluster = runCluster[t];
-    for (std::size_t k = n * t / threads; k < n * (t + 1) / threads; ++k) {
-      firstPiece[k] = static_cast<std::uint32_t>(items.triangle.size());
-      const int done = whole.halvings[k];
-      halveWhile(
-          whole.corners[k], kMaxPieceDepth - done, done, [&](const TrianglePiece& piece) { return split(k, piece); },
-          [&](const TrianglePiece& piece, int depth) {
-            const Vec3 centroid = (piece[0] + piece[1] + piece[2]) / 3.0;
-            items.triangle.push_back(whole.triangle[k]);
-            items.depthSum.push_back(whole.depthSum[k]);
-            items.depthCount.push_back(whole.depthCount[k]);
-            const double points = whole.depthCount[k];
-            items.pointSum.push_back(whole.pointSum[k] + points * (centroid - whole.centroid[k]));
-            items.centroid.push_back(centroid);
-            items.corners.push_back(piece);
-            items.halvings.push_back(static_cast<std::uint8_t>(depth));
-            if (!cluster.empty()) pieceCluster.push_back(cluster[k]);
-          });
-    }
+    for (std::size_t k = n * t / threads; k < n * (t + 1) / threads; ++k)
+      halve(k, [&](const TrianglePiece&, int) { ++firstPiece[k + 1]; });
   });
-  if (threads == 1) {
-    TriangleItems& items = runs[0];
-    items.itemOfPoint.resize(whole.itemOfPoint.size());
-    for (std::size_t i = 0; i < whole.itemOfPoint.size(); ++i) items.itemOfPoint[i] = firstPiece[whole.itemOfPoint[i]];
-    cluster.swap(runCluster[0]);
-    return std::move(items);
-  }
-  std::vector<std::size_t> offset(threads + 1, 0);
-  for (unsigned t = 0; t < threads; ++t) offset[t + 1] = offset[t] + runs[t].triangle.size();
-  const std::size_t total = offset[threads];
+  for (std::size_t k = 0; k < n; ++k) firstPiece[k + 1] += firstPiece[k];
+  const std::size_t total = firstPiece[n];
   TriangleItems items;
   items.triangle.resize(total);
   items.depthSum.resize(total);
@@ -261,18 +240,22 @@ TriangleItems splitItems(const TriangleItems& whole, Split&& split, std::vector<
   items.halvings.resize(total);
   std::vector<std::uint32_t> pieceCluster(cluster.empty() ? 0 : total);
   detail::runParallel(threads, [&](unsigned t) {
-    const TriangleItems& run = runs[t];
-    const std::size_t at = offset[t];
-    std::copy(run.triangle.begin(), run.triangle.end(), items.triangle.begin() + at);
-    std::copy(run.depthSum.begin(), run.depthSum.end(), items.depthSum.begin() + at);
-    std::copy(run.depthCount.begin(), run.depthCount.end(), items.depthCount.begin() + at);
-    std::copy(run.pointSum.begin(), run.pointSum.end(), items.pointSum.begin() + at);
-    std::copy(run.centroid.begin(), run.centroid.end(), items.centroid.begin() + at);
-    std::copy(run.corners.begin(), run.corners.end(), items.corners.begin() + at);
-    std::copy(run.halvings.begin(), run.halvings.end(), items.halvings.begin() + at);
-    std::copy(runCluster[t].begin(), runCluster[t].end(), pieceCluster.begin() + at);
-    for (std::size_t k = n * t / threads; k < n * (t + 1) / threads; ++k)
-      firstPiece[k] += static_cast<std::uint32_t>(at);
+    for (std::size_t k = n * t / threads; k < n * (t + 1) / threads; ++k) {
+      std::size_t at = firstPiece[k];
+      halve(k, [&](const TrianglePiece& piece, int depth) {
+        const Vec3 centroid = (piece[0] + piece[1] + piece[2]) / 3.0;
+        items.triangle[at] = whole.triangle[k];
+        items.depthSum[at] = whole.depthSum[k];
+        items.depthCount[at] = whole.depthCount[k];
+        const double points = whole.depthCount[k];
+        items.pointSum[at] = whole.pointSum[k] + points * (centroid - whole.centroid[k]);
+        items.centroid[at] = centroid;
+        items.corners[at] = piece;
+        items.halvings[at] = static_cast<std::uint8_t>(depth);
+        if (!cluster.empty()) pieceCluster[at] = cluster[k];
+        ++at;
+      });
+    }
   });
   items.itemOfPoint.resize(whole.itemOfPoint.size());
   for (std::size_t i = 0; i < whole.itemOfPoint.size(); ++i) items.itemOfPoint[i] = firstPiece[whole.itemOfPoint[i]];
@@ -572,6 +555,29 @@ inline double farthest2(const TrianglePiece& corners, const Vec3& c) {
   return std::max({(corners[0] - c).squaredNorm(), (corners[1] - c).squaredNorm(), (corners[2] - c).squaredNorm()});
 }
 
+// Calls visit(item) for every item, each cluster's items (cluster[item], of k) on one thread and in ascending order:
+// the threads take runs of clusters and each passes over all the items, so a sum or maximum by cluster comes out as
+// one thread's loop would make it, whatever the threads.
+template <class Visit>
+void byCluster(const std::vector<std::uint32_t>& cluster, std::size_t k, Visit&& visit) {
+  const unsigned threads = detail::threadsFor(cluster.size(), 0, 16384);
+  detail::runParallel(threads, [&](unsigned t) {
+    const std::size_t lo = k * t / threads, hi = k * (t + 1) / threads;
+    for (std::size_t i = 0; i < cluster.size(); ++i)
+      if (cluster[i] >= lo && cluster[i] < hi) visit(i);
+  });
+}
+
+// The items' farthest corner from the centre of their cluster, squared, by cluster (0 for an empty one).
+std::vector<double> farthestByCluster(const TriangleItems& items, const std::vector<std::uint32_t>& cluster,
+                                      const std::vector<Vec3>& centre) {
+  std::vector<double> far2(centre.size(), 0.0);
+  byCluster(cluster, centre.size(), [&](std::size_t i) {
+    far2[cluster[i]] = std::max(far2[cluster[i]], farthest2(items.corners[i], centre[cluster[i]]));
+  });
+  return far2;
+}
+
 // For each item, the spheres c with use(c) whose ball (centre[c], sqrt(reach2[c])) holds the item's centroid and
 // that accept(item, c) takes; per thread, its own run of items (threadsFor(n, 0, 4096)), as
 // list[t][start[t][i - first] .. start[t][i - first + 1]) for item i of thread t's run beginning at first. An item
@@ -675,9 +681,7 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
   const std::size_t k = centres.size(), n = cluster.size();
   std::vector<double> far2(k, 0.0), radius(k);
   auto fitRadii = [&] {
-    std::fill(far2.begin(), far2.end(), 0.0);
-    for (std::size_t item = 0; item < n; ++item)
-      far2[cluster[item]] = std::max(far2[cluster[item]], farthest2(items.corners[item], centres[cluster[item]]));
+    far2 = farthestByCluster(items, cluster, centres);
     for (std::size_t c = 0; c < k; ++c) radius[c] = std::sqrt(far2[c]);
   };
   fitRadii();
@@ -764,15 +768,6 @@ Vec3 fixedJitter(std::uint64_t c) {
     x = static_cast<double>(z >> 11) * (1.0 / 9007199254740992.0) - 0.5;
   }
   return Vec3(v[0], v[1], v[2]);
-}
-
-// The items' farthest corner from the centre of their cluster, squared, by cluster (0 for an empty one).
-std::vector<double> farthestByCluster(const TriangleItems& items, const std::vector<std::uint32_t>& cluster,
-                                      const std::vector<Vec3>& centre) {
-  std::vector<double> far2(centre.size(), 0.0);
-  for (std::size_t i = 0; i < cluster.size(); ++i)
-    far2[cluster[i]] = std::max(far2[cluster[i]], farthest2(items.corners[i], centre[cluster[i]]));
-  return far2;
 }
 
 // The items by cluster, those of the clusters with keep(c) (a counting sort: ascending within a cluster): cluster c's
@@ -987,10 +982,10 @@ void settleThinPatches(const TriangleItems& items, const std::vector<char>& thin
   auto moveSites = [&] {
     std::fill(site.begin(), site.end(), Vec3::Zero());
     std::fill(weight.begin(), weight.end(), 0.0);
-    for (std::size_t i = 0; i < n; ++i) {
+    byCluster(cluster, k, [&](std::size_t i) {
       site[cluster[i]] += area[i] * items.centroid[i];
       weight[cluster[i]] += area[i];
-    }
+    });
     for (std::size_t c = 0; c < k; ++c) site[c] = weight[c] > 0.0 ? Vec3(site[c] / weight[c]) : centres[c];
   };
   moveSites();
