@@ -48,8 +48,8 @@ constexpr double kCompactGain = 0.85;
 // keys lie farther from their own mean than the ring's from its, seem less compact than thinner rings, and the tree
 // would cut a hollow tube (or a shell's rim) into rings whose spheres sit in the empty space they enclose (on
 // thin_bench's tube-shell-0.004, 19 balls of the tube's radius centred on its axis).
-Vec3 compactAxis(const std::vector<std::uint32_t>& items, std::uint32_t begin, std::uint32_t end,
-                 const std::vector<Vec3>& key, const Vec3& mean, const Eigen::Matrix3d& axes) {
+Vec3 compactAxis(const std::vector<std::uint32_t>& items, std::uint32_t begin, std::uint32_t end, const Vec3* key,
+                 const Vec3& mean, const Eigen::Matrix3d& axes) {
   Vec3 best = axes.col(2);
   double bestSpread = std::numeric_limits<double>::infinity(), principal = bestSpread;
   for (int a = 2; a >= 0; --a) {  // largest eigenvalue first, so ties keep it
@@ -81,8 +81,8 @@ Vec3 compactAxis(const std::vector<std::uint32_t>& items, std::uint32_t begin, s
 // Splits items[begin, end) in two at the mean of their keys along the keys' principal axis, or with compact along
 // compactAxis; returns the first index of the second half, always strictly inside (begin, end) for end - begin >= 2.
 // Depends only on the items and their keys, never on d: the tree is the same for every d.
-std::uint32_t splitAtMean(std::vector<std::uint32_t>& items, std::uint32_t begin, std::uint32_t end,
-                          const std::vector<Vec3>& key, bool compact) {
+std::uint32_t splitAtMean(std::vector<std::uint32_t>& items, std::uint32_t begin, std::uint32_t end, const Vec3* key,
+                          bool compact) {
   Vec3 mean = Vec3::Zero();
   for (std::uint32_t i = begin; i < end; ++i) mean += key[items[i]];
   mean /= static_cast<double>(end - begin);
@@ -150,19 +150,24 @@ void requireWrapped(const TriangleMesh& mesh, std::size_t points, const std::vec
     if (t >= mesh.size()) throw InvalidParameter("TightClustering: wrapped triangle out of range");
 }
 
+// The arrays by item are left uninitialised when sized (every element is written before it is read): a thin plate's
+// pieces run to 17 MB, and zeroing them first cost as long as writing them.
+template <class T>
+using ItemArray = std::vector<T, detail::DefaultInitAllocator<T>>;
+
 // The items of clusterMesh are the wrapped triangles (each once, in the order first wrapped), or their
 // pieces (splitLongItems), with what the choice of a centre needs of each: its corners, its centroid and the
 // depth hint, the mean of its triangle's points' distances below the triangle (from the sums of the points
 // with a finite distance).
 struct TriangleItems {
   std::vector<std::uint32_t> itemOfPoint;  // by point (a split triangle's first piece)
-  std::vector<std::uint32_t> triangle;     // by item, as are the arrays below
-  std::vector<double> depthSum;
-  std::vector<std::uint32_t> depthCount;
-  std::vector<Vec3> pointSum;
-  std::vector<Vec3> centroid;
-  std::vector<TrianglePiece> corners;
-  std::vector<std::uint8_t> halvings;  // how many halvings below its triangle (0: the triangle whole)
+  ItemArray<std::uint32_t> triangle;       // by item, as are the arrays below
+  ItemArray<double> depthSum;
+  ItemArray<std::uint32_t> depthCount;
+  ItemArray<Vec3> pointSum;
+  ItemArray<Vec3> centroid;
+  ItemArray<TrianglePiece> corners;
+  ItemArray<std::uint8_t> halvings;  // how many halvings below its triangle (0: the triangle whole)
 };
 
 TriangleItems gatherItems(const TriangleMesh& mesh, const std::vector<Vec3>& points,
@@ -483,7 +488,7 @@ class PatchTree {
   // Whether node r is a leaf (with its centre); if not, it is split and mid is where its second half starts.
   bool isLeaf(Range r, Vec3& centre, bool& passed, double& depth, std::uint32_t& mid) {
     if (judge_.evaluate(r, centre, passed, depth)) return true;
-    mid = splitAtMean(order_, r.begin, r.end, items_.centroid, !judge_.hollow(r));
+    mid = splitAtMean(order_, r.begin, r.end, items_.centroid.data(), !judge_.hollow(r));
     return false;
   }
 
@@ -693,7 +698,10 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
   const unsigned threads = held.threads;
   const auto& candidates = held.list;
   const auto& starts = held.start;
-  // Rounds: each item decides from the previous round's radii and writes its own entry.
+  // Rounds: each item decides from the previous round's radii and writes its own entry. Its choice is the least
+  // (room, index) over its own sphere and its candidates; when none of their radii changed since its last choice,
+  // which was its own, the same choice comes again and the item is passed over (most are, after the first rounds).
+  std::vector<char> changed(k, 1);
   for (int round = 0; round < kRounds; ++round) {
     std::vector<char> moved(threads, 0);
     detail::runParallel(threads, [&](unsigned t) {
@@ -701,6 +709,10 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
       for (std::size_t item = first; item < n * (t + 1) / threads; ++item) {
         const TrianglePiece& corners = items.corners[item];
         const std::uint32_t own = cluster[item];
+        bool again = changed[own] != 0;
+        for (std::uint32_t j = starts[t][item - first]; j < starts[t][item - first + 1] && !again; ++j)
+          again = changed[candidates[t][j]] != 0;
+        if (!again) continue;
         std::uint32_t best = own;
         double room = std::sqrt(farthest2(corners, centres[own])) - radius[own];
         for (std::uint32_t j = starts[t][item - first]; j < starts[t][item - first + 1]; ++j) {
@@ -716,7 +728,9 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
       }
     });
     if (std::find(moved.begin(), moved.end(), 1) == moved.end()) break;
+    const std::vector<double> before = radius;
     fitRadii();
+    for (std::size_t c = 0; c < k; ++c) changed[c] = radius[c] != before[c] ? 1 : 0;
   }
   return radius;
 }
@@ -939,12 +953,12 @@ HolderLists thinCandidates(const TriangleItems& items, const std::vector<char>& 
 
 // One round of reassignment over the thin items: each goes to whichever of its own patch (at own(item)) and its
 // candidates (at candidate(item, s, nearest so far), infinity for one not admitted) is nearest, the lower index on a
-// tie; next[item] out (cluster[item] for the others). Returns whether any item moved.
+// tie; next[item] out (cluster[item] for the others). Returns how many items moved.
 template <class Own, class Candidate>
-bool reassign(const HolderLists& held, const std::vector<char>& thin, const std::vector<std::uint32_t>& cluster,
-              std::vector<std::uint32_t>& next, Own&& own, Candidate&& candidate) {
+std::size_t reassign(const HolderLists& held, const std::vector<char>& thin, const std::vector<std::uint32_t>& cluster,
+                     std::vector<std::uint32_t>& next, Own&& own, Candidate&& candidate) {
   const std::size_t n = cluster.size();
-  std::vector<char> moved(held.threads, 0);
+  std::vector<std::size_t> moved(held.threads, 0);
   detail::runParallel(held.threads, [&](unsigned t) {
     const std::size_t first = n * t / held.threads;
     for (std::size_t item = first; item < n * (t + 1) / held.threads; ++item) {
@@ -961,11 +975,11 @@ bool reassign(const HolderLists& held, const std::vector<char>& thin, const std:
           best = s;
         }
       }
-      moved[t] = moved[t] || best != mine;
+      moved[t] += best != mine ? 1 : 0;
       next[item] = best;
     }
   });
-  return std::find(moved.begin(), moved.end(), 1) != moved.end();
+  return std::accumulate(moved.begin(), moved.end(), std::size_t{0});
 }
 
 // Lloyd's rounds over the thin patches, then each thin centre to its patch's smallest enclosing ball (see kThinDepth):
@@ -999,7 +1013,7 @@ void settleThinPatches(const TriangleItems& items, const std::vector<char>& thin
   std::vector<std::uint32_t> next(n);
   for (int round = 0; round < kSettleRounds; ++round) {
     reach2 = farthestByCluster(items, cluster, site);
-    const bool moved = reassign(
+    const std::size_t moved = reassign(
         held, thin, cluster, next,
         [&](std::size_t item) { return (items.centroid[item] - site[cluster[item]]).squaredNorm(); },
         [&](std::size_t item, std::uint32_t s, double) {
@@ -1008,7 +1022,7 @@ void settleThinPatches(const TriangleItems& items, const std::vector<char>& thin
         });
     cluster.swap(next);
     moveSites();
-    if (!moved) break;
+    if (moved == 0) break;
   }
   // Each centre to its patch's smallest enclosing ball, nearly (centreThinPatches).
   for (std::size_t c = 0; c < k; ++c)
@@ -1307,7 +1321,7 @@ std::uint32_t TightClustering::cluster(const std::vector<Vec3>& points, double d
       ++clusters;
       continue;
     }
-    const std::uint32_t mid = splitAtMean(items, r.begin, r.end, points, false);
+    const std::uint32_t mid = splitAtMean(items, r.begin, r.end, points.data(), false);
     stack.push_back({mid, r.end});
     stack.push_back({r.begin, mid});
   }
