@@ -743,23 +743,26 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
 // fixed point of Lloyd's rounds), and items as large as a quarter of the radius leave corners overhanging the patch.
 // So the thin patches are settled: their items halved (continuing their triangle's halving) to at most kThinCoarse
 // of the radius; each patch's site (its items' centroid by area) moved once by up to kJitter of its reach in a
-// direction fixed by its index; then Lloyd's rounds, up to kSettleRounds: each item goes to the nearest site among
-// the thin patches whose reach (farthest corner from the site) holds its centroid, and the sites move to the new
-// centroids; each centre then goes to its patch's smallest enclosing ball (centreThinPatches), and the items that
-// reach beyond kThinRim of the new radius are halved further to kThinFine of it. Lloyd's rounds make the patches
-// compact on average, but the radius is set by the farthest corner: kCentreRounds k-centre rounds on the fine items
-// follow (centreRounds: each item to the patch its farthest corner is nearest to, each centre to its patch's
-// smallest enclosing ball), then the handing over gives the rim's pieces to the neighbour that holds them deeper.
-// Every radius still reaches every corner of its items (the handing over fits it), so coverage holds as before.
-// Chosen on thin_bench's plate-0.005 (bench/results/thin_tightness.md): finer pieces (0.3 and 0.12 of R) gave 5%
-// less volume at three to five times the build. With the k-centre rounds (2026-11-28), a depth of 0.5 R and a
-// flatness of 0.4 R also take the patches of plates about as thick as the spheres are wide (plate-0.015-mixed and
-// cap-shell-0.01 at 500 spheres: 27% and 16% less outside) and move the shared meshes by under 1% (with Badoiu and
-// Clarkson's steps for the centres and no k-centre rounds, a depth of 0.5 R had cost them 2 to 6%); 10 k-centre
-// rounds instead of 5 gain under 1%. Candidates for an item are found among the patches whose ball of kReachMargin
-// times their reach holds it (once after the jitter for Lloyd's rounds, once before the k-centre rounds). Without
-// the two sides the flat ends of a cylinder 0.05 thick were taken too and settled onto their face (their centres at
-// the surface): 16% more outside at 500 spheres.
+// direction fixed by its index; then Lloyd's rounds, up to kSettleRounds and until fewer than 1 / kSettleStop of the
+// thin items move in a round: each item goes to the nearest site among the thin patches whose reach (farthest corner
+// from the site) holds its centroid, and the sites move to the new centroids; each centre then goes to its patch's
+// smallest enclosing ball (centreThinPatches), and the items that reach beyond kThinRim of the new radius are halved
+// further to kThinFine of it. Lloyd's rounds make the patches compact on average, but the radius is set by the farthest
+// corner: kCentreRounds k-centre rounds on the fine items follow (centreRounds: each item to the patch its farthest
+// corner is nearest to, each centre to its patch's smallest enclosing ball), then the handing over gives the rim's
+// pieces to the neighbour that holds them deeper. Every radius still reaches every corner of its items (the handing
+// over fits it), so coverage holds as before. Chosen on thin_bench's plate-0.005 (bench/results/thin_tightness.md):
+// finer pieces (0.3 and 0.12 of R) gave 5% less volume at three to five times the build. With the k-centre rounds
+// (2026-11-28), a depth of 0.5 R and a flatness of 0.4 R also take the patches of plates about as thick as the spheres
+// are wide (plate-0.015-mixed and cap-shell-0.01 at 500 spheres: 27% and 16% less outside) and move the shared meshes
+// by under 1% (with Badoiu and Clarkson's steps for the centres and no k-centre rounds, a depth of 0.5 R had cost them
+// 2 to 6%); 10 k-centre rounds instead of 5 gain under 1%. For the build (issue 17's 100 ms): 4 k-centre rounds instead
+// of 5, and Lloyd's rounds stopped once under 1% of the items move (plate-0.015-mixed at 500 spheres: 9 rounds instead
+// of 16, the last seven moving 1.2 to 0.1%) changed the outside volume by -3 to +1.7% on thin_bench's 28 rows (no row
+// crossed its target either way) and took 10 to 35% off the builds. Candidates for an item are found among the patches
+// whose ball of kReachMargin times their reach holds it (once after the jitter for Lloyd's rounds, once before the
+// k-centre rounds). Without the two sides the flat ends of a cylinder 0.05 thick were taken too and settled onto their
+// face (their centres at the surface): 16% more outside at 500 spheres.
 constexpr double kThinDepth = 0.5;
 constexpr double kThinFlat = 0.4;
 constexpr double kTwoSided = 0.5;
@@ -768,7 +771,8 @@ constexpr double kThinFine = 0.2;
 constexpr double kThinRim = 0.8;
 constexpr double kJitter = 0.5;
 constexpr int kSettleRounds = 16;
-constexpr int kCentreRounds = 5;
+constexpr std::size_t kSettleStop = 100;
+constexpr int kCentreRounds = 4;
 constexpr double kReachMargin = 1.5;
 
 // A point of the cube [-1/2, 1/2]^3 fixed by c (splitmix64).
@@ -1011,6 +1015,8 @@ void settleThinPatches(const TriangleItems& items, const std::vector<char>& thin
   const HolderLists held =
       thinCandidates(items, thin, cluster, site, reach2, [&](std::size_t c) { return thin[c] && weight[c] > 0.0; });
   std::vector<std::uint32_t> next(n);
+  const std::size_t settling = static_cast<std::size_t>(
+      std::count_if(cluster.begin(), cluster.end(), [&](std::uint32_t c) { return thin[c] != 0; }));
   for (int round = 0; round < kSettleRounds; ++round) {
     reach2 = farthestByCluster(items, cluster, site);
     const std::size_t moved = reassign(
@@ -1022,7 +1028,7 @@ void settleThinPatches(const TriangleItems& items, const std::vector<char>& thin
         });
     cluster.swap(next);
     moveSites();
-    if (moved == 0) break;
+    if (moved * kSettleStop <= settling) break;
   }
   // Each centre to its patch's smallest enclosing ball, nearly (centreThinPatches).
   for (std::size_t c = 0; c < k; ++c)

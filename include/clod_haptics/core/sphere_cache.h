@@ -19,9 +19,10 @@ namespace clod_haptics {
  * version builds, so it is not read). 3: tight sets take another principal axis only where it cuts clearly more
  * compact halves (same reason). 4: the checksum is cacheChecksum (four lanes) instead of fnv1a64. 5: tight sets'
  * thin patches get k-centre rounds and a wider thin test (same reason; the thin-patch settling and the hollow rule,
- * which came after 4, had not bumped it, so a level cached between them could be read as the current one).
+ * which came after 4, had not bumped it, so a level cached between them could be read as the current one). 6: tight
+ * sets' thin patches stop Lloyd's rounds once under 1% of their items move and take 4 k-centre rounds (same reason).
  */
-constexpr std::uint32_t kSphereCacheFormatVersion = 5;
+constexpr std::uint32_t kSphereCacheFormatVersion = 6;
 
 /**
  * \brief A 64-bit content hash of a loaded mesh: FNV-1a over the vertex coordinates (after scaling)

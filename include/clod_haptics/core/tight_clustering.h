@@ -50,15 +50,17 @@ namespace clod_haptics {
  * setting the large sphere's radius: on the shared meshes at 150 and 500 spheres this lowers the outside volume
  * by 10 to 50% (bench/results/thin_tightness.md).
  *
- * Thin patches (when the builder asks for lists): a sphere whose centre lies less than 0.3 of its radius below the
- * surface, whose corners lie near a plane (within a quarter of the radius, rms) and whose triangles face both ways
+ * Thin patches (when the builder asks for lists): a sphere whose centre lies less than half its radius below the
+ * surface, whose corners lie near a plane (within 0.4 of the radius, rms) and whose triangles face both ways
  * (both faces of a plate, not a flat face of a thick part) is a patch of a thin part, its ball sticking out on both
  * sides; its volume outside grows as R^3 while what it covers grows as R^2, so equal,
  * compact patches (hexagons) hold the most for their volume, and the tree's halvings leave rectangles. Such patches
  * are settled before the handing over: their items are halved further (continuing their triangle's halving),
  * Lloyd's rounds on the surface move them between thin patches towards compact, alike patches (out of the tree's
- * grid by a jitter fixed by each patch's index), each centre goes to its patch's smallest enclosing ball, and the
- * pieces at a patch's rim are halved once more so that the handing over can give them to a neighbour. On plates
+ * grid by a jitter fixed by each patch's index), each centre goes to its patch's smallest enclosing ball, the
+ * pieces at a patch's rim are halved once more, and k-centre rounds (each piece to the patch its farthest corner is
+ * nearest to, each centre to its patch's smallest enclosing ball) lower the largest radii; the handing over can
+ * then give the rim's pieces to a neighbour. On plates
  * this takes 28 to 32% off the spheres' volume at the same count; a triangle in a thin patch may then be listed by
  * several spheres (one per piece at most), like a long one. Deterministic, independent of the threads. A settled
  * sphere is not judged again: the excess bound d^3 above is the judge's for the patches as cut, not a promise for a
