@@ -758,11 +758,11 @@ std::vector<double> shrinkByHandingOver(const TriangleItems& items, const std::v
 // by under 1% (with Badoiu and Clarkson's steps for the centres and no k-centre rounds, a depth of 0.5 R had cost them
 // 2 to 6%); 10 k-centre rounds instead of 5 gain under 1%. For the build (issue 17's 100 ms): 4 k-centre rounds instead
 // of 5, and Lloyd's rounds stopped once under 1% of the items move (plate-0.015-mixed at 500 spheres: 9 rounds instead
-// of 16, the last seven moving 1.2 to 0.1%) changed the outside volume by -3 to +1.7% on thin_bench's 28 rows (no row
-// crossed its target either way) and took 10 to 35% off the builds. Candidates for an item are found among the patches
-// whose ball of kReachMargin times their reach holds it (once after the jitter for Lloyd's rounds, once before the
-// k-centre rounds). Without the two sides the flat ends of a cylinder 0.05 thick were taken too and settled onto their
-// face (their centres at the surface): 16% more outside at 500 spheres.
+// of 16; the seven dropped had moved 0.55 to 0.12% of the items) changed the outside volume by -3 to +1.7% on
+// thin_bench's 28 rows (no row crossed its target either way) and took 10 to 35% off the builds. Candidates for an item
+// are found among the patches whose ball of kReachMargin times their reach holds it (once after the jitter for Lloyd's
+// rounds, once before the k-centre rounds). Without the two sides the flat ends of a cylinder 0.05 thick were taken too
+// and settled onto their face (their centres at the surface): 16% more outside at 500 spheres.
 constexpr double kThinDepth = 0.5;
 constexpr double kThinFlat = 0.4;
 constexpr double kTwoSided = 0.5;
