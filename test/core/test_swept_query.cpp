@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <random>
 #include <vector>
@@ -20,6 +21,7 @@
 #include "clod_haptics/core/swept_query.h"
 #include "simd/cell_scan_avx2.h"
 #include "simd/dispatch.h"
+#include "simd/record_filter_avx2.h"
 #include "test_helpers.h"
 
 namespace {
@@ -540,6 +542,69 @@ TEST(CellScanAvx2, KeepsEveryEntryTheDoubleTestKeeps) {
   EXPECT_EQ(dropped, 0u);
   EXPECT_GT(kept, 10000u);
   EXPECT_LT(extra, kept / 10) << "a filter that keeps everything passes the first check and helps nobody";
+}
+// The records' AVX2 filter (SweptSphereQuery::sweepCell) against the geometry itself, not the scalar bounds it stands
+// in front of: random triangles (records made as SweptSphereQuery makes them: bounding ball, unit normal, thickness)
+// and sweeps passing them at every angle, the reach set at the least distance sampled along the sweep, nudged a few
+// ulps either way. A triangle that some sampled centre comes within the reach of must be kept; most of the others
+// should be dropped (the ball, the plane, and the plane and ball together).
+TEST(RecordFilterAvx2, KeepsEveryTriangleASweepComesWithinReachOf) {
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::size_t within = 0, dropped = 0, beyond = 0, kept = 0;
+  for (int round = 0; round < 4000; ++round) {
+    const double scale = std::pow(10.0, -3.0 + 4.0 * u(rng));  // triangles of 1 mm to 10 m
+    const Vec3 origin = Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * (round % 2 ? 1e3 * scale : 0.0);
+    const Vec3 a = origin + Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * 4.0 * scale;
+    // In any direction, from a thousandth of the triangles' size to three times it; of zero length now and then.
+    const Vec3 d =
+        round % 7 == 0 ? Vec3(Vec3::Zero()) : Vec3(randomUnit(rng) * scale * std::pow(10.0, -3.0 + 3.5 * u(rng)));
+    const double end = round % 3 == 0 ? u(rng) : 1.0;
+    double record[4][8];
+    const double* pointers[4];
+    double nearest[4];
+    for (int k = 0; k < 4; ++k) {
+      Vec3 v[3];
+      const Vec3 around = a + d * u(rng) + randomUnit(rng) * scale * (0.2 + 1.5 * u(rng));
+      for (Vec3& corner : v) corner = around + randomUnit(rng) * scale * (k == 3 ? 2.0 : 0.5) * u(rng);
+      if (round % 5 == 0) v[2] = v[0] + (v[1] - v[0]) * u(rng);  // degenerate now and then
+      const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
+      double rho = 0.0, thick = 0.0;
+      for (const Vec3& corner : v) rho = std::max(rho, (corner - c).norm());
+      const Vec3 cross = (v[1] - v[0]).cross(v[2] - v[0]);
+      const Vec3 n = cross.norm() > 0.0 ? Vec3(cross.normalized()) : Vec3::Zero();
+      for (const Vec3& corner : v) thick = std::max(thick, std::abs(n.dot(corner - c)));
+      for (int j = 0; j < 3; ++j) {
+        record[k][j] = c[j];
+        record[k][4 + j] = n[j];
+      }
+      record[k][3] = rho;
+      record[k][7] = thick * (1.0 + 1e-9) + 1e-12 * rho;
+      pointers[k] = record[k];
+      nearest[k] = std::numeric_limits<double>::infinity();
+      for (int i = 0; i <= 400; ++i) {
+        const Vec3 p = a + (end * i / 400.0) * d;
+        nearest[k] = std::min(nearest[k], (closestPointOnTriangle(p, v[0], v[1], v[2]) - p).norm());
+      }
+    }
+    // The reach at one triangle's sampled distance (that one sits on the edge), the others by their own chance.
+    const double reach = nearest[round % 4] * (1.0 + 1e-15 * (round % 5 - 2)) + (round % 4 == 3 ? 0.0 : 1e-300);
+    const double dd = d.squaredNorm();
+    const detail::RecordFilterSweep sweep{
+        {a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, end, dd > 0.0 ? 1.0 / dd : 0.0, reach, reach};
+    const unsigned mask = detail::recordFilterAvx2(pointers, sweep);
+    for (int k = 0; k < 4; ++k) {
+      const bool reached = nearest[k] <= reach, got = (mask >> k) & 1u;
+      within += reached;
+      dropped += reached && !got;
+      beyond += !reached;
+      kept += !reached && got;
+    }
+  }
+  EXPECT_EQ(dropped, 0u) << "of " << within << " triangles within reach";
+  EXPECT_GT(within, 2000u);
+  EXPECT_LT(kept, beyond / 2) << "a filter that keeps everything passes the first check and helps nobody";
 }
 #endif
 

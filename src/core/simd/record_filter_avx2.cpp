@@ -54,9 +54,39 @@ __attribute__((target("avx2"))) unsigned recordFilterAvx2(const double* const re
   const __m256d nearer = _mm256_min_pd(_mm256_andnot_pd(sign, s0), _mm256_andnot_pd(sign, s1));
   const __m256d gap = _mm256_sub_pd(nearer, _mm256_mul_pd(plane[3], loose));
   const __m256d oneSide = _mm256_cmp_pd(_mm256_mul_pd(s0, s1), _mm256_setzero_pd(), _CMP_GT_OQ);
-  const __m256d farAcross =
-      _mm256_and_pd(oneSide, _mm256_cmp_pd(_mm256_div_pd(gap, loose), _mm256_set1_pd(s.across), _CMP_GT_OQ));
-  return ~static_cast<unsigned>(_mm256_movemask_pd(_mm256_or_pd(farBall, farAcross))) & 0xFu;
+  const __m256d acrossGap = _mm256_div_pd(gap, loose);
+  const __m256d farAcross = _mm256_and_pd(oneSide, _mm256_cmp_pd(acrossGap, _mm256_set1_pd(s.across), _CMP_GT_OQ));
+  // Across and along together (planeBoundMisses): the centre's motion projected on the plane passes no nearer to the
+  // record's centre than along + rho, so the triangle is at least sqrt(across^2 + along^2) away; both lowered and the
+  // reach raised by 1e-9 (the scalar bound's own rounding is far below), so this never drops what the scalar keeps.
+  const __m256d acrossLow = _mm256_and_pd(oneSide, _mm256_max_pd(acrossGap, _mm256_setzero_pd()));
+  const __m256d mpx = _mm256_sub_pd(mx, _mm256_mul_pd(s0, plane[0])),
+                mpy = _mm256_sub_pd(my, _mm256_mul_pd(s0, plane[1])),
+                mpz = _mm256_sub_pd(mz, _mm256_mul_pd(s0, plane[2]));
+  const __m256d dpx = _mm256_sub_pd(dx, _mm256_mul_pd(sd, plane[0])),
+                dpy = _mm256_sub_pd(dy, _mm256_mul_pd(sd, plane[1])),
+                dpz = _mm256_sub_pd(dz, _mm256_mul_pd(sd, plane[2]));
+  const __m256d dpp =
+      _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dpx, dpx), _mm256_mul_pd(dpy, dpy)), _mm256_mul_pd(dpz, dpz));
+  const __m256d mpdp =
+      _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(mpx, dpx), _mm256_mul_pd(mpy, dpy)), _mm256_mul_pd(mpz, dpz));
+  const __m256d moving = _mm256_cmp_pd(dpp, _mm256_setzero_pd(), _CMP_GT_OQ);
+  const __m256d tp = _mm256_and_pd(
+      moving,
+      _mm256_min_pd(_mm256_max_pd(_mm256_div_pd(_mm256_xor_pd(mpdp, sign), _mm256_max_pd(dpp, _mm256_set1_pd(1e-300))),
+                                  _mm256_setzero_pd()),
+                    _mm256_set1_pd(s.end)));
+  const __m256d vx = _mm256_add_pd(mpx, _mm256_mul_pd(tp, dpx)), vy = _mm256_add_pd(mpy, _mm256_mul_pd(tp, dpy)),
+                vz = _mm256_add_pd(mpz, _mm256_mul_pd(tp, dpz));
+  const __m256d vn =
+      _mm256_sqrt_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(vx, vx), _mm256_mul_pd(vy, vy)), _mm256_mul_pd(vz, vz)));
+  const __m256d alongLow =
+      _mm256_max_pd(_mm256_sub_pd(_mm256_div_pd(vn, loose), _mm256_mul_pd(ball[3], loose)), _mm256_setzero_pd());
+  const __m256d reachHigh = _mm256_mul_pd(_mm256_set1_pd(s.across), loose);
+  const __m256d farBoth =
+      _mm256_cmp_pd(_mm256_add_pd(_mm256_mul_pd(acrossLow, acrossLow), _mm256_mul_pd(alongLow, alongLow)),
+                    _mm256_mul_pd(reachHigh, reachHigh), _CMP_GT_OQ);
+  return ~static_cast<unsigned>(_mm256_movemask_pd(_mm256_or_pd(_mm256_or_pd(farBall, farAcross), farBoth))) & 0xFu;
 }
 
 #endif

@@ -23,8 +23,9 @@ struct RecordFilterSweep {
 
 #if defined(CLOD_PACKET_AVX2)
 /**
- * \brief Bit k set: the triangle whose record starts at record[k] may touch the sweep by the ball and across-plane
- * bounds; never clears one that the scalar bounds keep.
+ * \brief Bit k set: the triangle whose record starts at record[k] may touch the sweep by the ball bound, the
+ * across-plane bound and the two parts of the plane bound together (across and along it, planeBoundMisses); never
+ * clears one that the scalar bounds keep.
  */
 unsigned recordFilterAvx2(const double* const record[4], const RecordFilterSweep& s);
 #endif
