@@ -2,6 +2,8 @@
 
 #if defined(CLOD_PACKET_AVX2)
 #include <immintrin.h>
+
+#include "avx2_ops.h"
 #endif
 
 namespace clod_haptics {
@@ -35,21 +37,19 @@ __attribute__((target("avx2"))) unsigned recordFilterAvx2(const double* const re
   const __m256d dx = _mm256_set1_pd(s.d[0]), dy = _mm256_set1_pd(s.d[1]), dz = _mm256_set1_pd(s.d[2]);
   const __m256d sign = _mm256_set1_pd(-0.0), loose = _mm256_set1_pd(1.0 + 1e-9);
   // The ball: the sweep's nearest point to its centre farther than (radius + R) (1 + 1e-12), loosened.
-  const __m256d md = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(mx, dx), _mm256_mul_pd(my, dy)), _mm256_mul_pd(mz, dz));
+  const __m256d md = avx2::dot3(mx, dx, my, dy, mz, dz);
   const __m256d t =
       _mm256_min_pd(_mm256_max_pd(_mm256_mul_pd(_mm256_xor_pd(md, sign), _mm256_set1_pd(s.invdd)), _mm256_setzero_pd()),
                     _mm256_set1_pd(s.end));
   const __m256d qx = _mm256_add_pd(mx, _mm256_mul_pd(t, dx)), qy = _mm256_add_pd(my, _mm256_mul_pd(t, dy)),
                 qz = _mm256_add_pd(mz, _mm256_mul_pd(t, dz));
-  const __m256d q2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(qx, qx), _mm256_mul_pd(qy, qy)), _mm256_mul_pd(qz, qz));
+  const __m256d q2 = avx2::dot3(qx, qx, qy, qy, qz, qz);
   const __m256d reach =
       _mm256_mul_pd(_mm256_add_pd(ball[3], _mm256_set1_pd(s.R)), _mm256_set1_pd((1.0 + 1e-12) * (1.0 + 1e-9)));
   const __m256d farBall = _mm256_cmp_pd(q2, _mm256_mul_pd(reach, reach), _CMP_GT_OQ);
   // Across the plane: both ends on one side, farther than across (less the thickness), loosened.
-  const __m256d s0 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(plane[0], mx), _mm256_mul_pd(plane[1], my)),
-                                   _mm256_mul_pd(plane[2], mz));
-  const __m256d sd = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(plane[0], dx), _mm256_mul_pd(plane[1], dy)),
-                                   _mm256_mul_pd(plane[2], dz));
+  const __m256d s0 = avx2::dot3(plane[0], mx, plane[1], my, plane[2], mz);
+  const __m256d sd = avx2::dot3(plane[0], dx, plane[1], dy, plane[2], dz);
   const __m256d s1 = _mm256_add_pd(s0, _mm256_mul_pd(_mm256_set1_pd(s.end), sd));
   const __m256d nearer = _mm256_min_pd(_mm256_andnot_pd(sign, s0), _mm256_andnot_pd(sign, s1));
   const __m256d gap = _mm256_sub_pd(nearer, _mm256_mul_pd(plane[3], loose));
@@ -66,10 +66,8 @@ __attribute__((target("avx2"))) unsigned recordFilterAvx2(const double* const re
   const __m256d dpx = _mm256_sub_pd(dx, _mm256_mul_pd(sd, plane[0])),
                 dpy = _mm256_sub_pd(dy, _mm256_mul_pd(sd, plane[1])),
                 dpz = _mm256_sub_pd(dz, _mm256_mul_pd(sd, plane[2]));
-  const __m256d dpp =
-      _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dpx, dpx), _mm256_mul_pd(dpy, dpy)), _mm256_mul_pd(dpz, dpz));
-  const __m256d mpdp =
-      _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(mpx, dpx), _mm256_mul_pd(mpy, dpy)), _mm256_mul_pd(mpz, dpz));
+  const __m256d dpp = avx2::dot3(dpx, dpx, dpy, dpy, dpz, dpz);
+  const __m256d mpdp = avx2::dot3(mpx, dpx, mpy, dpy, mpz, dpz);
   const __m256d moving = _mm256_cmp_pd(dpp, _mm256_setzero_pd(), _CMP_GT_OQ);
   const __m256d tp = _mm256_and_pd(
       moving,
@@ -78,8 +76,7 @@ __attribute__((target("avx2"))) unsigned recordFilterAvx2(const double* const re
                     _mm256_set1_pd(s.end)));
   const __m256d vx = _mm256_add_pd(mpx, _mm256_mul_pd(tp, dpx)), vy = _mm256_add_pd(mpy, _mm256_mul_pd(tp, dpy)),
                 vz = _mm256_add_pd(mpz, _mm256_mul_pd(tp, dpz));
-  const __m256d vn =
-      _mm256_sqrt_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(vx, vx), _mm256_mul_pd(vy, vy)), _mm256_mul_pd(vz, vz)));
+  const __m256d vn = _mm256_sqrt_pd(avx2::dot3(vx, vx, vy, vy, vz, vz));
   const __m256d alongLow =
       _mm256_max_pd(_mm256_sub_pd(_mm256_div_pd(vn, loose), _mm256_mul_pd(ball[3], loose)), _mm256_setzero_pd());
   const __m256d reachHigh = _mm256_mul_pd(_mm256_set1_pd(s.across), loose);
