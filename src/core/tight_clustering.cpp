@@ -633,12 +633,9 @@ HolderLists ballsHolding(const TriangleItems& items, const std::vector<std::uint
     stack[top++] = 0;
     while (top > 0) {
       const BoxNode& node = nodes[stack[--top]];
-      double gap2 = 0.0;
-      for (int a = 0; a < 3; ++a) {
-        const double g = std::max({0.0, node.lo[a] - hi[a], lo[a] - node.hi[a]});
-        gap2 += g * g;
-      }
-      if (gap2 > 0.0) continue;
+      bool apart = false;
+      for (int a = 0; a < 3; ++a) apart = apart || node.lo[a] > hi[a] || lo[a] > node.hi[a];
+      if (apart) continue;
       if (node.count == 0) {
         stack[top++] = node.first;
         stack[top++] = static_cast<std::uint32_t>(&node - nodes.data()) + 1;
@@ -658,7 +655,7 @@ HolderLists ballsHolding(const TriangleItems& items, const std::vector<std::uint
     std::vector<std::uint32_t>& start = out.start[t];
     for (std::size_t item = n * t / out.threads; item < n * (t + 1) / out.threads; ++item) {
       start.push_back(static_cast<std::uint32_t>(list.size()));
-      if (none || !wanted[item]) continue;
+      if (!wanted[item]) continue;  // none wanted when no ball is used
       const Vec3& p = items.centroid[item];
       const std::uint32_t own = cluster[item];
       for (std::uint32_t j = meetStart[own]; j < meetStart[own + 1]; ++j) {
@@ -876,7 +873,7 @@ void centreThinPatches(const TriangleItems& items, const std::vector<char>& thin
   const std::size_t k = centres.size(), n = cluster.size();
   const ItemsByCluster sorted = itemsByCluster(cluster, k, [&](std::uint32_t c) { return thin[c] != 0; });
   const std::vector<std::uint32_t>& begin = sorted.begin;
-  const std::vector<std::uint32_t>& byCluster = sorted.item;
+  const std::vector<std::uint32_t>& members = sorted.item;
   const unsigned threads = detail::threadsFor(n, 0, 4096);
   detail::runParallel(threads, [&](unsigned t) {
     std::vector<Eigen::Vector2d> flat;
@@ -887,7 +884,7 @@ void centreThinPatches(const TriangleItems& items, const std::vector<char>& thin
         Vec3 mean = Vec3::Zero();
         Eigen::Matrix3d moments = Eigen::Matrix3d::Zero();
         for (std::uint32_t j = begin[c]; j < begin[c + 1]; ++j)
-          for (const Vec3& v : items.corners[byCluster[j]]) {
+          for (const Vec3& v : items.corners[members[j]]) {
             mean += v;
             moments.noalias() += v * v.transpose();
           }
@@ -908,7 +905,7 @@ void centreThinPatches(const TriangleItems& items, const std::vector<char>& thin
       const double threshold = kOuterShare * f.reach2;
       flat.clear();
       for (std::uint32_t j = begin[c]; j < begin[c + 1]; ++j)
-        for (const Vec3& v : items.corners[byCluster[j]]) {
+        for (const Vec3& v : items.corners[members[j]]) {
           const double across = (v - f.mean).dot(f.normal);
           lo = std::min(lo, across);
           hi = std::max(hi, across);
@@ -933,7 +930,7 @@ void centreThinPatches(const TriangleItems& items, const std::vector<char>& thin
       if (inner2 > 0.0 && (d.c - start).norm() + std::sqrt(inner2) > std::sqrt(std::max(d.r2, 0.0))) {
         flat.clear();
         for (std::uint32_t j = begin[c]; j < begin[c + 1]; ++j)
-          for (const Vec3& v : items.corners[byCluster[j]]) flat.push_back(project(v));
+          for (const Vec3& v : items.corners[members[j]]) flat.push_back(project(v));
         d = disc();
       }
       f.reach2 = d.r2;
@@ -1166,7 +1163,7 @@ std::uint32_t listLeaves(const std::vector<std::vector<Leaf>>& groups, const std
   // Items by sphere (a counting sort), the spheres without items dropped.
   const ItemsByCluster sorted = itemsByCluster(cluster, leafCentres.size(), [](std::uint32_t) { return true; });
   const std::vector<std::uint32_t>& begin = sorted.begin;
-  const std::vector<std::uint32_t>& byCluster = sorted.item;
+  const std::vector<std::uint32_t>& members = sorted.item;
   std::vector<std::uint32_t> renumber(leafCentres.size(), kNone);
   lists = ClusterLists{};
   lists.offsets.push_back(0);
@@ -1176,7 +1173,7 @@ std::uint32_t listLeaves(const std::vector<std::vector<Leaf>>& groups, const std
     if (begin[c] == begin[c + 1]) continue;
     renumber[c] = static_cast<std::uint32_t>(centres.size());
     listed.clear();
-    for (std::uint32_t j = begin[c]; j < begin[c + 1]; ++j) listed.push_back(items.triangle[byCluster[j]]);
+    for (std::uint32_t j = begin[c]; j < begin[c + 1]; ++j) listed.push_back(items.triangle[members[j]]);
     std::sort(listed.begin(), listed.end());
     listed.erase(std::unique(listed.begin(), listed.end()), listed.end());
     lists.triangles.insert(lists.triangles.end(), listed.begin(), listed.end());
