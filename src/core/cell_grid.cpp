@@ -11,6 +11,8 @@
 #include "clod_haptics/core/geometry.h"
 #include "float_rounding.h"
 #include "parallel.h"
+#include "simd/closest_point_avx2.h"
+#include "simd/dispatch.h"
 
 namespace clod_haptics {
 namespace {
@@ -40,7 +42,13 @@ double cellsOfBox(const std::int64_t dims[3]) {
   return static_cast<double>(dims[0]) * static_cast<double>(dims[1]) * static_cast<double>(dims[2]);
 }
 
-std::int8_t quantise(double u) { return static_cast<std::int8_t>(std::lround(std::clamp(u, -1.0, 1.0) * 127.0)); }
+/** u (finite) times 127, rounded half away from zero as std::lround would, without its library call. */
+std::int8_t quantise(double u) {
+  const double v = std::clamp(u, -1.0, 1.0) * 127.0;
+  const auto whole = static_cast<int>(v);  // toward zero; v - whole is exact
+  const double part = v - whole;
+  return static_cast<std::int8_t>(whole + (part >= 0.5) - (part <= -0.5));
+}
 
 // ---- Cell size and placement ----
 
@@ -289,8 +297,10 @@ class CandidateCollector {
       : mesh_(mesh),
         g_(g),
         unit_(distanceUnit),
+        finerScale_(256.0 / distanceUnit),
         planeLimit_(g.reach + 1e-9 * g.h + f.pad),  // slack for the rounding of the plane distance
-        tiny_(std::max(1e-9 * g.h, 4e-9 * f.magnitude)) {}
+        tiny_(std::max(1e-9 * g.h, 4e-9 * f.magnitude)),
+        avx2_(detail::packetAvx2()) {}
 
   /** Appends the candidates of the triangles [begin, end) in the cells of z in [zBegin, zEnd). */
   void collect(const std::uint32_t* begin, const std::uint32_t* end, std::int64_t zBegin, std::int64_t zEnd,
@@ -318,6 +328,31 @@ class CandidateCollector {
     l[2] = std::max(l[2], zBegin);
     u[2] = std::min(u[2], zEnd - 1);
     if (l[2] > u[2]) return;
+    // The cells that pass both bounds, four at a time: their closest points in one AVX2 pass where the CPU has it
+    // (bit for bit the scalar function's; a small triangle's cells around it fall in different regions, whose
+    // branches would mispredict).
+    Vec3 centres[4];
+    std::uint64_t keys[4];
+    unsigned pending = 0;
+    auto flush = [&] {
+      unsigned computed = 0;
+      detail::ClosestPoints4 q;
+#if defined(CLOD_PACKET_AVX2)
+      if (avx2_ && pending > 1) {
+        const Vec3* at[4];
+        for (unsigned k = 0; k < 4; ++k) at[k] = &centres[std::min(k, pending - 1)];
+        computed = detail::closestPointsAvx2(at, a, b, c, q);
+      }
+#endif
+      for (unsigned k = 0; k < pending; ++k) {
+        const Vec3 closest =
+            computed & (1u << k) ? Vec3(q.q[0][k], q.q[1][k], q.q[2][k]) : closestPointOnTriangle(centres[k], a, b, c);
+        const Vec3 toCentre = centres[k] - closest;
+        const double d = toCentre.norm();
+        if (d <= g_.reach) out.push_back(candidate(keys[k], static_cast<std::uint32_t>(t), toCentre, d));
+      }
+      pending = 0;
+    };
     for (std::int64_t x = l[0]; x <= u[0]; ++x)
       for (std::int64_t y = l[1]; y <= u[1]; ++y)
         for (std::int64_t z = l[2]; z <= u[2]; ++z) {
@@ -326,10 +361,11 @@ class CandidateCollector {
           // the box are rejected by it before the closest-point computation.
           if (planar && std::abs(n.dot(centre - a)) > planeLimit_) continue;
           if ((centre - mid).squaredNorm() > ball2) continue;
-          const Vec3 toCentre = centre - closestPointOnTriangle(centre, a, b, c);
-          const double d = toCentre.norm();
-          if (d <= g_.reach) out.push_back(candidate(cellKey(x, y, z), static_cast<std::uint32_t>(t), toCentre, d));
+          centres[pending] = centre;
+          keys[pending] = cellKey(x, y, z);
+          if (++pending == 4) flush();
         }
+    flush();
   }
 
   /**
@@ -344,16 +380,18 @@ class CandidateCollector {
     const Vec3 dir = toCentre / d;
     const float rounded = roundDown(d);
     const std::uint8_t code = distanceCode(rounded, unit_);
-    const double within = (static_cast<double>(rounded) - code * unit_) * (256.0 / unit_);  // monotone in d
+    const double within = (static_cast<double>(rounded) - code * unit_) * finerScale_;  // monotone in d
     const auto finer = static_cast<std::uint8_t>(std::clamp(within, 0.0, 255.0));
     return {low, high, t, code, finer, {quantise(dir.x()), quantise(dir.y()), quantise(dir.z())}};
   }
 
   const TriangleMesh& mesh_;
   const Layout& g_;
-  double unit_;  // of the distance codes
+  double unit_;        // of the distance codes
+  double finerScale_;  // 256 / unit_: the finer byte's steps
   double planeLimit_;
   double tiny_;
+  bool avx2_;  // the closest points four at a time
 };
 
 // ---- Slices of z ----
@@ -439,42 +477,25 @@ SliceTriangles trianglesPerSlice(const TriangleMesh& mesh, const Layout& g, cons
   return s;
 }
 
-/** A slice's candidates, collected by two threads into two lists, each sorted. */
+/** One slice's candidates, sorted (by one thread), and how many cells they fill. */
 struct SliceCandidates {
-  ReallocArray<Candidate> first, second;
-  ReallocArray<Candidate> scratch[2];  // the sorts' buffers, one per thread
+  ReallocArray<Candidate> list, scratch;  // scratch: the sort's buffer
+  std::size_t cells = 0;
 
-  void collect(const CandidateCollector& collector, const std::uint32_t* list, std::size_t count, std::int64_t zBegin,
-               std::int64_t zEnd) {
-    first.clear();
-    second.clear();
-    const std::size_t half = count / 2;
-    detail::runParallel(2, [&](unsigned part) {
-      auto& out = part ? second : first;
-      collector.collect(part ? list + half : list, part ? list + count : list + half, zBegin, zEnd, out);
-      sortCandidates(out, scratch[part]);
-    });
-  }
-  /** Visits the candidates of both lists in merged order. */
-  template <class Visit>
-  void forEachMerged(Visit&& visit) const {
-    std::size_t i = 0, j = 0;
-    while (i < first.size() || j < second.size()) {
-      if (j == second.size() || (i < first.size() && ByCellThenDistance()(first[i], second[j])))
-        visit(first[i++]);
-      else
-        visit(second[j++]);
-    }
-  }
-  std::size_t cellCount() const {
-    std::size_t cells = 0;
+  void collect(const CandidateCollector& collector, const std::uint32_t* triangles, std::size_t count,
+               std::int64_t zBegin, std::int64_t zEnd) {
+    list.clear();
+    collector.collect(triangles, triangles + count, zBegin, zEnd, list);
+    sortCandidates(list, scratch);
+    cells = 0;
     std::uint64_t last = CellGrid::kOutside;
-    forEachMerged([&](const Candidate& c) {
+    for (const Candidate& c : list) {
       cells += c.key() != last;
       last = c.key();
-    });
-    return cells;
+    }
   }
+  /** Entries the slice's cells take: a header per cell and its candidates. */
+  std::size_t entries() const { return list.size() + cells; }
 };
 
 // ---- Packing the entries ----
@@ -483,86 +504,99 @@ struct SliceCandidates {
 struct CellTables {
   std::vector<std::uint64_t> keys;
   std::vector<std::uint64_t> headers;
+
+  void append(const CellTables& more) {
+    keys.insert(keys.end(), more.keys.begin(), more.keys.end());
+    headers.insert(headers.end(), more.headers.begin(), more.headers.end());
+  }
 };
 
 /**
- * Appends cells to the entries: per cell a header (its candidate count, then in the next 4 bytes the number of
- * distinct spheres listing them) followed by its candidates.
+ * Writes the cells of sorted candidates into the entries: per cell a header (its candidate count, then in the next 4
+ * bytes the number of distinct spheres listing them) followed by its candidates. One packer per thread.
  */
 class CellPacker {
  public:
-  CellPacker(ReallocArray<Entry>& entries, std::vector<std::uint32_t> sphereOf, std::size_t spheres)
-      : entries_(entries), sphereOf_(std::move(sphereOf)), cellOfSphere_(spheres + 1, kNoCell) {}
+  CellPacker(const std::vector<std::uint32_t>& sphereOf, std::size_t spheres)
+      : sphereOf_(sphereOf), cellOfSphere_(spheres + 1, kNoCell) {}
 
-  /** Appends the cells of a slice (its cells follow those appended before in key order). */
-  void append(const SliceCandidates& slice) {
-    const std::size_t cells = slice.cellCount();
-    at_ = entries_.size();
-    entries_.resize(at_ + slice.first.size() + slice.second.size() + cells);
-    last_ = CellGrid::kOutside;
-    slice.forEachMerged([&](const Candidate& c) { add(c); });
-    closeCell();
+  /** Writes the slice's cells at entries[at, at + slice.entries()); their keys and headers go to tables. */
+  void pack(const SliceCandidates& slice, CellGrid::Entry* entries, std::size_t at, CellTables& tables) {
+    tables.keys.clear();
+    tables.headers.clear();
+    std::uint64_t last = CellGrid::kOutside;
+    std::size_t header = at;
+    std::uint32_t spheres = 0;
+    auto close = [&] {
+      if (last == CellGrid::kOutside) return;
+      Entry& e = entries[header];
+      e = Entry{static_cast<std::uint32_t>(at - header - 1), 0, {0, 0, 0}};
+      std::memcpy(reinterpret_cast<unsigned char*>(&e) + 4, &spheres, sizeof spheres);
+    };
+    for (const Candidate& c : slice.list) {
+      if (c.key() != last) {
+        close();
+        spheres = 0;
+        ++cell_;
+        header = at++;
+        tables.headers.push_back(header);
+        tables.keys.push_back(c.key());
+        last = c.key();
+      }
+      entries[at++] = Entry{c.triangle, c.distance, {c.direction[0], c.direction[1], c.direction[2]}};
+      // A triangle no sphere lists (kept by a caller's set that breaks the coverage invariant) counts as one more.
+      std::uint32_t& seen = cellOfSphere_[std::min<std::size_t>(sphereOf_[c.triangle], cellOfSphere_.size() - 1)];
+      spheres += seen != cell_;
+      seen = cell_;
+    }
+    close();
   }
-  CellTables tables;
 
  private:
-  void add(const Candidate& c) {
-    if (c.key() != last_) {
-      closeCell();
-      spheres_ = 0;
-      header_ = at_++;
-      tables.headers.push_back(header_);
-      tables.keys.push_back(c.key());
-      last_ = c.key();
-    }
-    entries_[at_++] = Entry{c.triangle, c.distance, {c.direction[0], c.direction[1], c.direction[2]}};
-    // A triangle no sphere lists (kept by a caller's set that breaks the coverage invariant) counts as one more.
-    std::uint32_t& seen = cellOfSphere_[std::min<std::size_t>(sphereOf_[c.triangle], cellOfSphere_.size() - 1)];
-    const auto cell = static_cast<std::uint32_t>(tables.keys.size());  // the open cell's number, from 1
-    spheres_ += seen != cell;
-    seen = cell;
-  }
-  void closeCell() {
-    if (last_ == CellGrid::kOutside) return;
-    Entry& e = entries_[header_];
-    e = Entry{static_cast<std::uint32_t>(at_ - header_ - 1), 0, {0, 0, 0}};
-    std::memcpy(reinterpret_cast<unsigned char*>(&e) + 4, &spheres_, sizeof spheres_);
-  }
-
-  ReallocArray<Entry>& entries_;
-  static constexpr std::uint32_t kNoCell = 0;  // no cell yet: cells are numbered from 1
-  const std::vector<std::uint32_t> sphereOf_;  // the first sphere listing each triangle
-  std::vector<std::uint32_t> cellOfSphere_;    // per sphere (and one for none), the last cell listing it
-  std::uint32_t spheres_ = 0;                  // distinct spheres of the open cell's candidates
-  std::size_t at_ = 0, header_ = 0;
-  std::uint64_t last_ = CellGrid::kOutside;
+  static constexpr std::uint32_t kNoCell = 0;   // no cell yet: this packer numbers its cells from 1
+  const std::vector<std::uint32_t>& sphereOf_;  // the first sphere listing each triangle
+  std::vector<std::uint32_t> cellOfSphere_;     // per sphere (and one for none), the last cell listing it
+  std::uint32_t cell_ = kNoCell;                // the open cell's number
 };
 
 /**
  * Collects, sorts and packs the candidates of every cell into entries. Candidates are collected in slices of z
- * (keys sort by z first, so slices come in key order), each slice's two halves (two threads) sorted and merged
- * straight onto the end of the entries: only one slice's 24-byte candidates are held beside the 8-byte entries,
- * and both arrays grow by realloc (pages moved, not copied).
+ * (keys sort by z first, so slices come in key order), two slices at a time, one per thread: each thread collects
+ * and sorts its slice, then both write their cells straight onto the end of the entries, side by side. Only two
+ * slices' 20-byte candidates are held beside the 8-byte entries, and the entries grow by realloc (pages moved, not
+ * copied).
  */
 CellTables packCells(const TriangleMesh& mesh, const ClodSphereSet& set, const MeshFigures& f, const Layout& g,
                      double sliceCandidates, double distanceUnit, ReallocArray<Entry>& entries) {
   const double expected = estimatedCandidates(f, mesh.size(), g.reach, g.h);
   const std::int64_t slices =
-      std::clamp<std::int64_t>(static_cast<std::int64_t>(expected / std::max(1.0, sliceCandidates)) + 1, 1,
-                               std::min<std::int64_t>(256, g.dims[2]));
+      std::clamp<std::int64_t>(2 * (static_cast<std::int64_t>(expected / std::max(1.0, sliceCandidates)) + 1), 1,
+                               std::min<std::int64_t>(512, g.dims[2]));
   // Every triangle is listed by a sphere: the coverage invariant.
-  CellPacker packer(entries, firstSphereOfTriangles(set, mesh.size()), set.size());
+  const std::vector<std::uint32_t> sphereOf = firstSphereOfTriangles(set, mesh.size());
   const std::vector<std::int64_t> starts = sliceStarts(mesh, g, slices);
   const SliceTriangles lists = trianglesPerSlice(mesh, g, starts);
   const CandidateCollector collector(mesh, g, f, distanceUnit);
-  SliceCandidates candidates;
-  for (std::size_t slice = 0; slice + 1 < starts.size(); ++slice) {
-    if (starts[slice] >= starts[slice + 1]) continue;
-    candidates.collect(collector, lists.triangles.data() + lists.first[slice],
-                       lists.first[slice + 1] - lists.first[slice], starts[slice], starts[slice + 1]);
-    packer.append(candidates);
+  SliceCandidates work[2];
+  CellPacker packers[2] = {CellPacker(sphereOf, set.size()), CellPacker(sphereOf, set.size())};
+  CellTables sliceTables[2], tables;
+  const std::size_t count = starts.size() - 1;
+  for (std::size_t first = 0; first < count; first += 2) {
+    const unsigned pair = first + 1 < count ? 2u : 1u;
+    detail::runParallel(pair, [&](unsigned part) {
+      const std::size_t slice = first + part;
+      work[part].collect(collector, lists.triangles.data() + lists.first[slice],
+                         lists.first[slice + 1] - lists.first[slice], starts[slice], starts[slice + 1]);
+    });
+    std::size_t at[2];
+    at[0] = entries.size();
+    at[1] = at[0] + work[0].entries();
+    entries.resize(at[1] + (pair > 1 ? work[1].entries() : 0));
+    detail::runParallel(
+        pair, [&](unsigned part) { packers[part].pack(work[part], entries.data(), at[part], sliceTables[part]); });
+    for (unsigned part = 0; part < pair; ++part) tables.append(sliceTables[part]);
   }
-  return std::move(packer.tables);
+  return tables;
 }
 
 // ---- Proofs of no contact ----
@@ -591,25 +625,40 @@ bool clipToRegion(const Vec3& a, const Vec3& b, const Vec3& c, double half, doub
   Polygon other;
   Polygon* in = &out;
   Polygon* to = &other;
-  auto clip = [&](const Vec3& normal, double limit) {
+  // Keeps the part where along(corner) <= limit; each corner's value is computed once. The planes' normals have
+  // components 0 and +-1, so along() is the dot product with the normal exactly (the zero terms add nothing).
+  double value[24];
+  auto clip = [&](auto&& along, double limit) {
+    const int count = in->count;
+    bool cut = false;
+    for (int i = 0; i < count; ++i) {
+      value[i] = along(in->corner[i]) - limit;
+      cut |= value[i] > 0.0;
+    }
+    if (!cut) return true;  // every corner kept: the polygon as it is
     int m = 0;
-    for (int i = 0; i < in->count; ++i) {
+    for (int i = 0; i < count; ++i) {
+      const int j = i + 1 == count ? 0 : i + 1;
       const Vec3& P = in->corner[i];
-      const Vec3& Q = in->corner[(i + 1) % in->count];
-      const double dp = normal.dot(P) - limit, dq = normal.dot(Q) - limit;
+      const double dp = value[i], dq = value[j];
       if (dp <= 0.0) to->corner[m++] = P;
-      if ((dp < 0.0 && dq > 0.0) || (dp > 0.0 && dq < 0.0)) to->corner[m++] = P + (dp / (dp - dq)) * (Q - P);
+      if ((dp < 0.0 && dq > 0.0) || (dp > 0.0 && dq < 0.0))
+        to->corner[m++] = P + (dp / (dp - dq)) * (in->corner[j] - P);
     }
     to->count = m;
     std::swap(in, to);
     return m > 0;
   };
-  for (int k = 0; k < 3; ++k)
-    for (double side : {1.0, -1.0})
-      if (!clip(side * Vec3::Unit(k), half)) return false;
-  for (int q = 0; q < 8; ++q)
-    if (!clip(Vec3(q & 1 ? -1.0 : 1.0, q & 2 ? -1.0 : 1.0, q & 4 ? -1.0 : 1.0), diamond)) return false;
-  return true;  // after 14 clips (an even count) the polygon is back in out
+  for (int k = 0; k < 3; ++k) {
+    if (!clip([k](const Vec3& v) { return v[k]; }, half)) return false;
+    if (!clip([k](const Vec3& v) { return -v[k]; }, half)) return false;
+  }
+  for (int q = 0; q < 8; ++q) {
+    const double sx = q & 1 ? -1.0 : 1.0, sy = q & 2 ? -1.0 : 1.0, sz = q & 4 ? -1.0 : 1.0;
+    if (!clip([&](const Vec3& v) { return sx * v.x() + sy * v.y() + sz * v.z(); }, diamond)) return false;
+  }
+  if (in != &out) out = *in;  // a plane that cut nothing left the polygon where it was
+  return true;
 }
 
 /**

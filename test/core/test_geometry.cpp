@@ -445,6 +445,48 @@ TEST(ClosestPointsAvx2, SameBitsAsTheScalarFunctionOnEveryLaneItComputes) {
   EXPECT_GT(leftOut, 0);          // the degenerate kinds do reach the fallback
   EXPECT_LT(leftOutRegular, 50);  // regular triangles hardly ever
 }
+
+// The grid's build asks the other way round: four points (cell centres) against one triangle. The same claim.
+TEST(ClosestPointsAvx2, FourPointsAgainstOneTriangleSameBitsAsTheScalarFunction) {
+  if (!detail::packetAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int regions[7] = {}, leftOut = 0;
+  auto bits = [](double x) {
+    std::uint64_t b;
+    std::memcpy(&b, &x, sizeof b);
+    return b;
+  };
+  for (int i = 0; i < 50000; ++i) {
+    const Case k = randomCase(rng, i);
+    const Vec3 centre = (k.a + k.b + k.c) / 3.0;
+    const double size = std::max({(k.a - k.b).norm(), (k.b - k.c).norm(), (k.c - k.a).norm(), 1e-3});
+    Vec3 points[4];
+    const Vec3* p[4];
+    for (int lane = 0; lane < 4; ++lane) {
+      points[lane] = centre + size * 1.5 * Vec3(u(rng), u(rng), u(rng));
+      p[lane] = &points[lane];
+    }
+    detail::ClosestPoints4 out;
+    const unsigned computed = detail::closestPointsAvx2(p, k.a, k.b, k.c, out);
+    for (int lane = 0; lane < 4; ++lane) {
+      if (!(computed & (1u << lane))) {
+        ++leftOut;
+        continue;
+      }
+      TriangleRegion region;
+      const Vec3 q = closestPointOnTriangle(points[lane], k.a, k.b, k.c, &region);
+      for (int j = 0; j < 3; ++j) ASSERT_EQ(bits(out.q[j][lane]), bits(q[j])) << "case " << i << " lane " << lane;
+      ASSERT_EQ(bits(out.d2[lane]), bits((points[lane] - q).squaredNorm())) << "case " << i << " lane " << lane;
+      const TriangleRegion got = out.region(static_cast<unsigned>(lane));
+      ASSERT_EQ(got.feature, region.feature) << "case " << i << " lane " << lane;
+      ASSERT_EQ(got.index, region.index) << "case " << i << " lane " << lane;
+      ++regions[static_cast<int>(out.kind[lane])];
+    }
+  }
+  for (int r = 0; r < 7; ++r) EXPECT_GT(regions[r], 1000) << "region " << r << " barely met";
+  EXPECT_GT(leftOut, 0);  // the degenerate kinds do reach the fallback
+}
 #endif
 
 }  // namespace

@@ -35,14 +35,8 @@ constexpr int kVertexA = ClosestPoints4::kVertexA, kVertexB = ClosestPoints4::kV
               kEdgeAB = ClosestPoints4::kEdgeAB, kVertexC = ClosestPoints4::kVertexC, kEdgeAC = ClosestPoints4::kEdgeAC,
               kEdgeBC = ClosestPoints4::kEdgeBC;
 
-#undef CLOD_AVX2
-}  // namespace
-
-__attribute__((target("avx2"))) unsigned closestPointsAvx2(const Vec3& p, const Vec3* const a[4],
-                                                           const Vec3* const b[4], const Vec3* const c[4],
-                                                           ClosestPoints4& out) {
-  const V3 A = load(a), B = load(b), C = load(c);
-  const V3 P{_mm256_set1_pd(p.x()), _mm256_set1_pd(p.y()), _mm256_set1_pd(p.z())};
+// The four lanes' closest points (any of P, A, B and C may hold one value in every lane), in out; the lanes computed.
+CLOD_AVX2 unsigned closestPoints(const V3& P, const V3& A, const V3& B, const V3& C, ClosestPoints4& out) {
   const __m256d zero = _mm256_setzero_pd();
   const V3 ab = difference(B, A), ac = difference(C, A), ap = difference(P, A), bp = difference(P, B),
            cp = difference(P, C);
@@ -105,6 +99,21 @@ __attribute__((target("avx2"))) unsigned closestPointsAvx2(const Vec3& p, const 
   for (int k = 5; k >= 0; --k) kind = pick(kind, _mm256_set1_pd(k), in[k]);
   _mm256_storeu_pd(out.kind, kind);
   return 0xfu & ~static_cast<unsigned>(_mm256_movemask_pd(fallback));
+}
+CLOD_AVX2 V3 broadcast(const Vec3& v) { return {_mm256_set1_pd(v.x()), _mm256_set1_pd(v.y()), _mm256_set1_pd(v.z())}; }
+
+#undef CLOD_AVX2
+}  // namespace
+
+__attribute__((target("avx2"))) unsigned closestPointsAvx2(const Vec3& p, const Vec3* const a[4],
+                                                           const Vec3* const b[4], const Vec3* const c[4],
+                                                           ClosestPoints4& out) {
+  return closestPoints(broadcast(p), load(a), load(b), load(c), out);
+}
+
+__attribute__((target("avx2"))) unsigned closestPointsAvx2(const Vec3* const p[4], const Vec3& a, const Vec3& b,
+                                                           const Vec3& c, ClosestPoints4& out) {
+  return closestPoints(load(p), broadcast(a), broadcast(b), broadcast(c), out);
 }
 
 }  // namespace detail

@@ -1,8 +1,8 @@
 #pragma once
-// Internal to the core (not API): closestPointOnTriangle for four triangles at once in AVX2, for the grid's
-// exact scan, where a test's branches (which of seven regions) mispredict on most candidates. Compiled for x86-64
-// with GCC or Clang (the function carries the target attribute); call it only where packetAvx2() (dispatch.h) is
-// true.
+// Internal to the core (not API): closestPointOnTriangle for four triangles (or four points) at once in AVX2, for the
+// grid's exact scan and its build, where a test's branches (which of seven regions) mispredict on most candidates.
+// Compiled for x86-64 with GCC or Clang (the function carries the target attribute); call it only where packetAvx2()
+// (dispatch.h) is true.
 
 #include <cstdint>
 
@@ -59,6 +59,11 @@ struct ClosestPoints4 {
  */
 unsigned closestPointsAvx2(const Vec3& p, const Vec3* const a[4], const Vec3* const b[4], const Vec3* const c[4],
                            ClosestPoints4& out);
+/**
+ * \brief The same for four points and one triangle: closestPointOnTriangle(*p[k], a, b, c) for k = 0..3, bit for bit
+ * (the cell grid's build, where a small triangle's cells around it fall in different regions).
+ */
+unsigned closestPointsAvx2(const Vec3* const p[4], const Vec3& a, const Vec3& b, const Vec3& c, ClosestPoints4& out);
 #endif
 
 }  // namespace detail
