@@ -401,6 +401,25 @@ TEST(SquaredDistanceToBox, MatchesPerAxisDefinition) {
 }
 
 #if defined(CLOD_PACKET_AVX2)
+std::uint64_t bitsOf(double x) {
+  std::uint64_t b;
+  std::memcpy(&b, &x, sizeof b);
+  return b;
+}
+
+// Whether lane of out holds closestPointOnTriangle(p, a, b, c)'s point, squared distance and feature, bit for bit.
+::testing::AssertionResult sameAsScalar(const detail::ClosestPoints4& out, int lane, const Vec3& p, const Vec3& a,
+                                        const Vec3& b, const Vec3& c) {
+  TriangleRegion region;
+  const Vec3 q = closestPointOnTriangle(p, a, b, c, &region);
+  for (int j = 0; j < 3; ++j)
+    if (bitsOf(out.q[j][lane]) != bitsOf(q[j])) return ::testing::AssertionFailure() << "coordinate " << j;
+  if (bitsOf(out.d2[lane]) != bitsOf((p - q).squaredNorm())) return ::testing::AssertionFailure() << "squared distance";
+  const TriangleRegion got = out.region(static_cast<unsigned>(lane));
+  if (got.feature != region.feature || got.index != region.index) return ::testing::AssertionFailure() << "feature";
+  return ::testing::AssertionSuccess();
+}
+
 // The AVX2 kernel of the grid's scan claims closestPointOnTriangle's values bit for bit on every lane it computes
 // (the scalar function is checked against the long-double reference above), and leaves to it only the zero-area
 // fallback: on every kind of triangle of randomCase, four at a time, each region met many times.
@@ -408,11 +427,6 @@ TEST(ClosestPointsAvx2, SameBitsAsTheScalarFunctionOnEveryLaneItComputes) {
   if (!detail::packetAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
   std::mt19937_64 rng(17);
   int regions[7] = {}, leftOut = 0, leftOutRegular = 0;
-  auto bits = [](double x) {
-    std::uint64_t b;
-    std::memcpy(&b, &x, sizeof b);
-    return b;
-  };
   for (int i = 0; i < 50000; ++i) {
     Case k[4];
     const Vec3 *a[4], *b[4], *c[4];
@@ -431,13 +445,7 @@ TEST(ClosestPointsAvx2, SameBitsAsTheScalarFunctionOnEveryLaneItComputes) {
         leftOutRegular += (i + lane) % 7 < 2;
         continue;
       }
-      TriangleRegion region;
-      const Vec3 q = closestPointOnTriangle(k[0].p, k[lane].a, k[lane].b, k[lane].c, &region);
-      for (int j = 0; j < 3; ++j) ASSERT_EQ(bits(out.q[j][lane]), bits(q[j])) << "case " << i << " lane " << lane;
-      ASSERT_EQ(bits(out.d2[lane]), bits((k[0].p - q).squaredNorm())) << "case " << i << " lane " << lane;
-      const TriangleRegion got = out.region(static_cast<unsigned>(lane));
-      ASSERT_EQ(got.feature, region.feature) << "case " << i << " lane " << lane;
-      ASSERT_EQ(got.index, region.index) << "case " << i << " lane " << lane;
+      ASSERT_TRUE(sameAsScalar(out, lane, k[0].p, k[lane].a, k[lane].b, k[lane].c)) << "case " << i << " lane " << lane;
       ++regions[static_cast<int>(out.kind[lane])];
     }
   }
@@ -452,11 +460,6 @@ TEST(ClosestPointsAvx2, FourPointsAgainstOneTriangleSameBitsAsTheScalarFunction)
   std::mt19937_64 rng(23);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   int regions[7] = {}, leftOut = 0;
-  auto bits = [](double x) {
-    std::uint64_t b;
-    std::memcpy(&b, &x, sizeof b);
-    return b;
-  };
   for (int i = 0; i < 50000; ++i) {
     const Case k = randomCase(rng, i);
     const Vec3 centre = (k.a + k.b + k.c) / 3.0;
@@ -474,13 +477,7 @@ TEST(ClosestPointsAvx2, FourPointsAgainstOneTriangleSameBitsAsTheScalarFunction)
         ++leftOut;
         continue;
       }
-      TriangleRegion region;
-      const Vec3 q = closestPointOnTriangle(points[lane], k.a, k.b, k.c, &region);
-      for (int j = 0; j < 3; ++j) ASSERT_EQ(bits(out.q[j][lane]), bits(q[j])) << "case " << i << " lane " << lane;
-      ASSERT_EQ(bits(out.d2[lane]), bits((points[lane] - q).squaredNorm())) << "case " << i << " lane " << lane;
-      const TriangleRegion got = out.region(static_cast<unsigned>(lane));
-      ASSERT_EQ(got.feature, region.feature) << "case " << i << " lane " << lane;
-      ASSERT_EQ(got.index, region.index) << "case " << i << " lane " << lane;
+      ASSERT_TRUE(sameAsScalar(out, lane, points[lane], k.a, k.b, k.c)) << "case " << i << " lane " << lane;
       ++regions[static_cast<int>(out.kind[lane])];
     }
   }
