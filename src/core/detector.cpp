@@ -14,6 +14,7 @@
 #include "clod_haptics/core/mesh_box_tree.h"
 #include "enum_names.h"
 #include "float_rounding.h"
+#include "simd/cell_scan_avx2.h"
 #include "simd/closest_point_avx2.h"
 #include "simd/dispatch.h"
 #include "vector_bytes.h"
@@ -542,7 +543,9 @@ inline __attribute__((always_inline)) void ClodDetector::scanCell(const CellGrid
     }
   });
   if (mesh_->size() > kLookaheadAbove) batch.lookAhead(triangleIndex_, vertices_);
-  for (std::uint32_t i = 0; i < cell.count; ++i) {
+  // Entry i's two bounds against the reach as it stands: false when the scan is over (sorted by dc, so the rest is
+  // farther), else the entry handed to the batch when it passes.
+  auto visit = [&](std::uint32_t i) {
     double reach;
     if constexpr (filling)
       reach = fill->reach;
@@ -550,11 +553,44 @@ inline __attribute__((always_inline)) void ClodDetector::scanCell(const CellGrid
       reach = best.reach;
     const double dc = e[i].distance * unit;
     // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
-    if (dc - offset > reach) break;
+    if (dc - offset > reach) return false;
     // Supporting plane at the triangle's point nearest the centre: a tighter bound for this p.
     const double bound = dc + rx * e[i].direction[0] + ry * e[i].direction[1] + rz * e[i].direction[2];
-    if (bound - slack > reach || e[i].triangle == skip) continue;
+    if (bound - slack > reach || e[i].triangle == skip) return true;
     batch.add(e[i].triangle);  // the sphere is looked up once, for the answer
+    return true;
+  };
+  std::uint32_t i = 0;
+#if defined(CLOD_PACKET_AVX2)
+  // Eight entries at a time through the swept query's float filter (the point as a piece of zero length), which keeps
+  // every entry whose plane bound the double test keeps at the reach it was given; the entries it keeps go through
+  // visit, against the reach as it stands then.
+  if (cell.count >= 8 && detail::packetAvx2()) {
+    double boundsReach = -1.0;
+    detail::CellScanBounds bounds{};
+    for (; i + 8 <= cell.count; i += 8) {
+      double reach;
+      if constexpr (filling)
+        reach = fill->reach;
+      else
+        reach = best.reach;
+      if (e[i].distance * unit - offset > reach) break;  // the block's nearest entry is out of reach: so is the rest
+      if (reach != boundsReach) {
+        boundsReach = reach;
+        bounds = detail::cellScanBounds(rel, rel, 0.0, 0.0, unit, reach + slack, offset + reach);
+      }
+      bool more = true;
+      for (unsigned m = detail::cellScanBlockAvx2(e + i, bounds); m != 0 && more; m &= m - 1)
+        more = visit(i + static_cast<std::uint32_t>(__builtin_ctz(m)));
+      if (!more) break;
+    }
+    if (i + 8 <= cell.count) {
+      batch.finish();
+      return;
+    }
+  }
+#endif
+  for (; i < cell.count && visit(i); ++i) {
   }
   batch.finish();
 }

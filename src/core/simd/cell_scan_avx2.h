@@ -1,7 +1,8 @@
 #pragma once
-// Internal to the core (not API): the swept query's scan of a grid cell's candidates in AVX2, eight entries
-// per register in float, a filter that keeps every entry the double test of SweptSphereQuery::sweepCell keeps
-// (that test then decides). Compiled for x86-64 with GCC or Clang (the function carries the target attribute);
+// Internal to the core (not API): the scan of a grid cell's candidates in AVX2, eight entries per register in
+// float, a filter that keeps every entry the double test keeps (that test then decides): the swept query's
+// (SweptSphereQuery::sweepCell) for a piece of a sweep, the point query's (ClodDetector::scanCell) for a piece of
+// zero length. Compiled for x86-64 with GCC or Clang (the function carries the target attribute);
 // call it only where packetAvx2() (dispatch.h) is true.
 
 #include "clod_haptics/core/cell_grid.h"
