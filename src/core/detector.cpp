@@ -5,7 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <optional>
+#include <new>
 #include <string>
 #include <type_traits>
 
@@ -501,6 +501,32 @@ void ClodDetector::testGridBatch(const std::uint32_t* triangles, unsigned count,
 }
 
 namespace {
+/**
+ * An optional T whose storage stays uninitialised until emplace: std::optional's default constructor
+ * value-initialises its payload, which for the 440-byte NearFill was a memset on every scan of a cell.
+ */
+template <class T>
+class Deferred {
+  static_assert(std::is_trivially_destructible<T>::value, "nothing to destroy: the storage is simply dropped");
+
+ public:
+  Deferred() {}  // user-provided: the storage is left as it is
+  Deferred(const Deferred&) = delete;
+  Deferred& operator=(const Deferred&) = delete;
+  template <class... Args>
+  T& emplace(Args&&... args) {
+    engaged_ = true;
+    return *new (storage_) T(std::forward<Args>(args)...);
+  }
+  explicit operator bool() const { return engaged_; }
+  T& operator*() { return *std::launder(reinterpret_cast<T*>(storage_)); }
+  T* operator->() { return &**this; }
+
+ private:
+  alignas(T) unsigned char storage_[sizeof(T)];
+  bool engaged_ = false;
+};
+
 // A stream slower than this (per query, in radii) fills a neighbourhood; the margin it is filled for is this many
 // of its steps, between the two bounds (in radii): a neighbourhood then serves up to 16 queries at a steady pace.
 // A larger margin (32 steps, up to r/2) made each fill dearer than the queries it served saved; 8 was no better.
@@ -647,7 +673,7 @@ void ClodDetector::preciseGrid(const Vec3& p, DetectionMode mode, Best& best, Qu
   best.hits = cell.spheres;
   const bool crowded = cell.count > kTreeAboveEntries && meshTree_;
   // A slow stream (exact mode, not a crowded cell): this scan also fills the neighbourhood the next queries use.
-  std::optional<NearFill> fill;
+  Deferred<NearFill> fill;
   if (cache != nullptr && mode == DetectionMode::Exact && !best.deep && !crowded &&
       step2 <= kNearStep * kNearStep * r * r) {
     const double margin = std::clamp(kNearSteps * std::sqrt(step2), kNearMarginMin * r, kNearMarginMax * r);
