@@ -250,7 +250,7 @@ class CellGrid {
     const Word& w = words_[linear >> 6];
     const std::uint64_t bit = 1ull << (linear & 63);
     if (!(w.bits & bit)) return nullptr;
-    return refs_.data() + w.rank + static_cast<std::uint32_t>(__builtin_popcountll(w.bits & (bit - 1)));
+    return refs_.data() + w.rank + bitCount(w.bits & (bit - 1));
   }
   /** \brief The candidates of a cell. */
   Cell cell(const CellRef& ref) const noexcept {
@@ -303,6 +303,20 @@ class CellGrid {
     std::uint64_t header;
     CellRef ref;
   };
+  /**
+   * Set bits of x. Without the POPCNT instruction (the generic x86-64 the package builds for) __builtin_popcountll
+   * is a call into libgcc (a table of bytes); every lookup of the dense index counts once, so it is inlined here.
+   */
+  static std::uint32_t bitCount(std::uint64_t x) noexcept {
+#if defined(__POPCNT__)
+    return static_cast<std::uint32_t>(__builtin_popcountll(x));
+#else
+    x -= (x >> 1) & 0x5555555555555555ull;
+    x = (x & 0x3333333333333333ull) + ((x >> 2) & 0x3333333333333333ull);
+    x = (x + (x >> 4)) & 0x0f0f0f0f0f0f0f0full;
+    return static_cast<std::uint32_t>((x * 0x0101010101010101ull) >> 56);
+#endif
+  }
   /** Position of a cell in the linear order x + nx (y + ny z) of the dense index. */
   std::uint64_t linearOf(std::uint64_t key) const noexcept {
     constexpr std::uint64_t m = (1ull << kBits) - 1;
