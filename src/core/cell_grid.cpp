@@ -455,25 +455,36 @@ SliceTriangles trianglesPerSlice(const TriangleMesh& mesh, const Layout& g, cons
     s.first[1] = static_cast<std::uint32_t>(mesh.size());
     return s;
   }
-  auto slicesOf = [&](std::size_t t, std::size_t& sa, std::size_t& sb) {
-    std::int64_t l2, u2;
-    double w;
-    zSpan(mesh, g, t, l2, u2, w);
-    sa = static_cast<std::size_t>(std::upper_bound(starts.begin(), starts.end(), l2) - starts.begin()) - 1;
-    sb = static_cast<std::size_t>(std::upper_bound(starts.begin(), starts.end(), u2) - starts.begin()) - 1;
-  };
-  std::size_t sa, sb;
-  for (std::size_t t = 0; t < mesh.size(); ++t) {
-    slicesOf(t, sa, sb);
-    for (std::size_t q = sa; q <= sb; ++q) ++s.first[q + 1];
-  }
-  for (std::size_t q = 0; q < count; ++q) s.first[q + 1] += s.first[q];
+  // Each triangle's first and last slice, found once; counted and listed by two threads over the two halves of the
+  // triangles, the first half's before the second's in every slice: each slice lists its triangles in ascending order,
+  // as one thread would.
+  const std::size_t n = mesh.size(), half = n / 2;
+  std::vector<std::uint32_t> span(2 * n);
+  std::vector<std::uint32_t> counts[2] = {std::vector<std::uint32_t>(count, 0), std::vector<std::uint32_t>(count, 0)};
+  detail::runParallel(2, [&](unsigned part) {
+    std::vector<std::uint32_t>& counted = counts[part];
+    for (std::size_t t = part ? half : 0; t < (part ? n : half); ++t) {
+      std::int64_t l2, u2;
+      double w;
+      zSpan(mesh, g, t, l2, u2, w);
+      const auto sa =
+          static_cast<std::uint32_t>(std::upper_bound(starts.begin(), starts.end(), l2) - starts.begin()) - 1;
+      const auto sb =
+          static_cast<std::uint32_t>(std::upper_bound(starts.begin(), starts.end(), u2) - starts.begin()) - 1;
+      span[2 * t] = sa;
+      span[2 * t + 1] = sb;
+      for (std::uint32_t q = sa; q <= sb; ++q) ++counted[q];
+    }
+  });
+  for (std::size_t q = 0; q < count; ++q) s.first[q + 1] = s.first[q] + counts[0][q] + counts[1][q];
   s.triangles.resize(s.first[count]);
-  std::vector<std::uint32_t> fill(s.first.begin(), s.first.end() - 1);
-  for (std::size_t t = 0; t < mesh.size(); ++t) {
-    slicesOf(t, sa, sb);
-    for (std::size_t q = sa; q <= sb; ++q) s.triangles[fill[q]++] = static_cast<std::uint32_t>(t);
-  }
+  detail::runParallel(2, [&](unsigned part) {
+    std::vector<std::uint32_t> fill(count);
+    for (std::size_t q = 0; q < count; ++q) fill[q] = s.first[q] + (part ? counts[0][q] : 0);
+    for (std::size_t t = part ? half : 0; t < (part ? n : half); ++t)
+      for (std::uint32_t q = span[2 * t]; q <= span[2 * t + 1]; ++q)
+        s.triangles[fill[q]++] = static_cast<std::uint32_t>(t);
+  });
   return s;
 }
 
