@@ -225,18 +225,9 @@ struct Candidate {
   std::uint64_t key() const { return std::uint64_t{keyHigh} << 32 | keyLow; }
 };
 
-/** The order of the entries: by cell, then by distance (its code, then the finer byte), then by triangle. */
-struct ByCellThenDistance {
-  bool operator()(const Candidate& p, const Candidate& q) const {
-    if (p.key() != q.key()) return p.key() < q.key();
-    if (p.distance != q.distance) return p.distance < q.distance;
-    if (p.finer != q.finer) return p.finer < q.finer;
-    return p.triangle < q.triangle;
-  }
-};
-
 /**
- * Sorts candidates collected in ascending triangle order into ByCellThenDistance order with one stable radix sort
+ * Sorts candidates collected in ascending triangle order into the entries' order (by cell, then by distance: its
+ * code, then the finer byte, then by triangle) with one stable radix sort
  * (through scratch): a pass over the finer byte, one over the 8-bit distance code, then the keys cut down to the
  * bits their x, y and z ranges use (which keeps their order), 11 bits a pass. Stable, so candidates equal in all
  * three keep the triangles' order. A slice's

@@ -569,14 +569,16 @@ inline __attribute__((always_inline)) void ClodDetector::scanCell(const CellGrid
     }
   });
   if (mesh_->size() > kLookaheadAbove) batch.lookAhead(triangleIndex_, vertices_);
+  auto reachNow = [&]() -> double {  // as it stands: it narrows during the scan
+    if constexpr (filling)
+      return fill->reach;
+    else
+      return best.reach;
+  };
   // Entry i's two bounds against the reach as it stands: false when the scan is over (sorted by dc, so the rest is
   // farther), else the entry handed to the batch when it passes.
   auto visit = [&](std::uint32_t i) {
-    double reach;
-    if constexpr (filling)
-      reach = fill->reach;
-    else
-      reach = best.reach;
+    const double reach = reachNow();
     const double dc = e[i].distance * unit;
     // Triangle inequality: distance(p, T) >= dc - |p - centre|; entries are sorted by dc, so stop.
     if (dc - offset > reach) return false;
@@ -595,11 +597,7 @@ inline __attribute__((always_inline)) void ClodDetector::scanCell(const CellGrid
     double boundsReach = -1.0;
     detail::CellScanBounds bounds{};
     for (; i + 8 <= cell.count; i += 8) {
-      double reach;
-      if constexpr (filling)
-        reach = fill->reach;
-      else
-        reach = best.reach;
+      const double reach = reachNow();
       if (e[i].distance * unit - offset > reach) break;  // the block's nearest entry is out of reach: so is the rest
       if (reach != boundsReach) {
         boundsReach = reach;

@@ -166,8 +166,8 @@ class CellGrid {
    * for small, large and long thin triangles.
    * \param index Auto: dense when its bit index takes no more than the hashed index would, or at most 16 bytes
    * per triangle, hashed otherwise; Dense or Hashed force one (Dense falls back to Hashed beyond 2^34 cells).
-   * \param sliceCandidates the build collects candidates in slices of z of about this many (the peak
-   * memory of the build is the entries plus one slice's 24-byte candidates); the grid is the same.
+   * \param sliceCandidates the build collects candidates in slices of z of about half this many, two slices at a
+   * time (the peak memory of the build is the entries plus about this many 20-byte candidates); the grid is the same.
    * \param bytesPerTriangle the size the grid aims at where coarser cells cost no query speed (see above).
    */
   CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle = 24.0,
