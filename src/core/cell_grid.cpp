@@ -10,13 +10,18 @@
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
 #include "float_rounding.h"
+#include "grid_entry_codes.h"
 #include "parallel.h"
 #include "simd/closest_point_avx2.h"
 #include "simd/dispatch.h"
+#include "simd/grid_entry_avx2.h"
 
 namespace clod_haptics {
 namespace {
 
+using detail::distanceCode;
+using detail::finerCode;
+using detail::quantiseDirection;
 using detail::ReallocArray;
 using detail::roundDown;
 using Entry = CellGrid::Entry;
@@ -40,14 +45,6 @@ std::uint64_t mix(std::uint64_t k) {
 /** Number of cells of the grid's box (in double: it may exceed what the dense index can hold). */
 double cellsOfBox(const std::int64_t dims[3]) {
   return static_cast<double>(dims[0]) * static_cast<double>(dims[1]) * static_cast<double>(dims[2]);
-}
-
-/** u (finite) times 127, rounded half away from zero as std::lround would, without its library call. */
-std::int8_t quantise(double u) {
-  const double v = std::clamp(u, -1.0, 1.0) * 127.0;
-  const auto whole = static_cast<int>(v);  // toward zero; v - whole is exact
-  const double part = v - whole;
-  return static_cast<std::int8_t>(whole + (part >= 0.5) - (part <= -0.5));
 }
 
 // ---- Cell size and placement ----
@@ -206,14 +203,6 @@ void spannedCells(const TriangleMesh& mesh, const Layout& g, std::size_t t, std:
 
 // ---- Candidates ----
 
-/** The 8-bit distance of an entry, rounded down (q * unit <= d, exactly as the query computes it). */
-std::uint8_t distanceCode(float distance, double unit) {
-  const double d = static_cast<double>(distance);
-  double q = std::min(255.0, std::floor(d / unit));
-  while (q > 0.0 && q * unit > d) q -= 1.0;
-  return static_cast<std::uint8_t>(q);
-}
-
 /** A triangle listed by a cell, before packing (20 bytes: the key in two halves, so nothing is padded). */
 struct Candidate {
   std::uint32_t keyLow, keyHigh;
@@ -326,16 +315,24 @@ class CandidateCollector {
     std::uint64_t keys[4];
     unsigned pending = 0;
     auto flush = [&] {
-      unsigned computed = 0;
+      unsigned computed = 0, encoded = 0;
       detail::ClosestPoints4 q;
+      detail::GridEntries4 e;
 #if defined(CLOD_PACKET_AVX2)
       if (avx2_ && pending > 1) {
         const Vec3* at[4];
         for (unsigned k = 0; k < 4; ++k) at[k] = &centres[std::min(k, pending - 1)];
         computed = detail::closestPointsAvx2(at, a, b, c, q);
+        // Their entries' bytes too (the distance's square root and codes, the direction's division and rounding).
+        if (computed != 0) encoded = computed & detail::gridEntriesAvx2(at, q, unit_, finerScale_, tiny_, e);
       }
 #endif
       for (unsigned k = 0; k < pending; ++k) {
+        if (encoded & (1u << k)) {
+          if (e.distance[k] <= g_.reach)
+            out.push_back(entry(keys[k], static_cast<std::uint32_t>(t), e.code[k], e.finer[k], e.direction[k]));
+          continue;
+        }
         const Vec3 closest =
             computed & (1u << k) ? Vec3(q.q[0][k], q.q[1][k], q.q[2][k]) : closestPointOnTriangle(centres[k], a, b, c);
         const Vec3 toCentre = centres[k] - closest;
@@ -344,6 +341,33 @@ class CandidateCollector {
       }
       pending = 0;
     };
+    auto add = [&](const Vec3& centre, std::int64_t x, std::int64_t y, std::int64_t z) {
+      centres[pending] = centre;
+      keys[pending] = cellKey(x, y, z);
+      if (++pending == 4) flush();
+    };
+#if defined(CLOD_PACKET_AVX2)
+    // Four cells of a column at a time through both bounds (most cells of the box fail one, in no pattern a branch
+    // predicts); the same bounds on the same centres as below.
+    if (avx2_ && u[2] - l[2] >= 3) {
+      const detail::TriangleBounds bounds{planar, n, a, planeLimit_, mid, ball2};
+      for (std::int64_t x = l[0]; x <= u[0]; ++x)
+        for (std::int64_t y = l[1]; y <= u[1]; ++y) {
+          const Vec3 column = g_.centre(x, y, 0);
+          for (std::int64_t z = l[2]; z <= u[2]; z += 4) {
+            const std::int64_t count = std::min<std::int64_t>(4, u[2] - z + 1);
+            for (unsigned m = detail::columnCellsAvx2(column.x(), column.y(), g_.origin.z(), g_.h, z, bounds) &
+                              ((1u << count) - 1u);
+                 m != 0; m &= m - 1) {
+              const std::int64_t at = z + __builtin_ctz(m);
+              add(g_.centre(x, y, at), x, y, at);
+            }
+          }
+        }
+      flush();
+      return;
+    }
+#endif
     for (std::int64_t x = l[0]; x <= u[0]; ++x)
       for (std::int64_t y = l[1]; y <= u[1]; ++y)
         for (std::int64_t z = l[2]; z <= u[2]; ++z) {
@@ -352,9 +376,7 @@ class CandidateCollector {
           // the box are rejected by it before the closest-point computation.
           if (planar && std::abs(n.dot(centre - a)) > planeLimit_) continue;
           if ((centre - mid).squaredNorm() > ball2) continue;
-          centres[pending] = centre;
-          keys[pending] = cellKey(x, y, z);
-          if (++pending == 4) flush();
+          add(centre, x, y, z);
         }
     flush();
   }
@@ -366,14 +388,19 @@ class CandidateCollector {
    * 0 <= distance (dc = 0, u = 0): never skipped, never wrong.
    */
   Candidate candidate(std::uint64_t key, std::uint32_t t, const Vec3& toCentre, double d) const {
-    const auto low = static_cast<std::uint32_t>(key), high = static_cast<std::uint32_t>(key >> 32);
-    if (!(d > tiny_)) return {low, high, t, 0, 0, {0, 0, 0}};
+    const std::int8_t none[3] = {0, 0, 0};
+    if (!(d > tiny_)) return entry(key, t, 0, 0, none);
     const Vec3 dir = toCentre / d;
     const float rounded = roundDown(d);
     const std::uint8_t code = distanceCode(rounded, unit_);
-    const double within = (static_cast<double>(rounded) - code * unit_) * finerScale_;  // monotone in d
-    const auto finer = static_cast<std::uint8_t>(std::clamp(within, 0.0, 255.0));
-    return {low, high, t, code, finer, {quantise(dir.x()), quantise(dir.y()), quantise(dir.z())}};
+    const std::int8_t direction[3] = {quantiseDirection(dir.x()), quantiseDirection(dir.y()),
+                                      quantiseDirection(dir.z())};
+    return entry(key, t, code, finerCode(rounded, code, unit_, finerScale_), direction);
+  }
+  static Candidate entry(std::uint64_t key, std::uint32_t t, std::uint8_t code, std::uint8_t finer,
+                         const std::int8_t direction[3]) {
+    return {static_cast<std::uint32_t>(key),           static_cast<std::uint32_t>(key >> 32), t, code, finer,
+            {direction[0], direction[1], direction[2]}};
   }
 
   const TriangleMesh& mesh_;
@@ -706,7 +733,7 @@ class SlabBuilder {
  private:
   /** The range of the candidates along an 8-bit normal (none for a zero one). */
   struct Range {
-    explicit Range(const Vec3& n) : m8{quantise(n.x()), quantise(n.y()), quantise(n.z())} {
+    explicit Range(const Vec3& n) : m8{quantiseDirection(n.x()), quantiseDirection(n.y()), quantiseDirection(n.z())} {
       m = n.isZero(0.0) ? Vec3::Zero() : Vec3(m8[0] / 127.0, m8[1] / 127.0, m8[2] / 127.0);
     }
     bool holds(const Vec3& a, const Vec3& b, const Vec3& c) const {

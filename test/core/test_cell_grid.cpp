@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <set>
@@ -19,6 +20,10 @@
 #include "clod_haptics/core/errors.h"
 #include "clod_haptics/core/geometry.h"
 #include "clod_haptics/core/probes.h"
+#include "float_rounding.h"
+#include "grid_entry_codes.h"
+#include "simd/dispatch.h"
+#include "simd/grid_entry_avx2.h"
 #include "test_helpers.h"
 
 namespace {
@@ -359,5 +364,144 @@ TEST(CellGrid, OutsideKeyForFarPoints) {
   EXPECT_EQ(grid.find(CellGrid::kOutside), nullptr);
   EXPECT_NE(grid.find(grid.keyOf(Vec3(0.5, 0.5, 1.0))), nullptr) << "a point on the surface has candidates";
 }
+
+#if defined(CLOD_PACKET_AVX2)
+// The grid's build encodes its entries four at a time in AVX2 where the CPU has it, and claims the scalar encoders'
+// bytes and distance bit for bit on every lane it encodes (the grid is the same on every machine). Distances at and
+// beside the codes' steps (whole multiples of the unit, and the float rounding's neighbours), directions at the
+// quantisation's half steps, lengths below the tiny limit (left to the scalar path) and far beyond 255 units.
+TEST(GridEntriesAvx2, SameBytesAsTheScalarEncodersOnEveryLaneItEncodes) {
+  if (!detail::packetAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<double> u(-1.0, 1.0), w(0.0, 300.0);
+  const double tiny = 1e-9;
+  int encoded = 0, leftOut = 0, onStep = 0, halfStep = 0;
+  for (int i = 0; i < 200000; ++i) {
+    // Steps that floats hold exactly, and steps that divisions round (the code's correction loop).
+    const double unit = i % 2 ? 1.0 / 64.0 : 0.0137, scale = 256.0 / unit;
+    Vec3 centres[4];
+    const Vec3* at[4];
+    detail::ClosestPoints4 q;
+    for (int lane = 0; lane < 4; ++lane) {
+      Vec3 dir(u(rng), u(rng), u(rng));
+      if (dir.norm() < 1e-3) dir = Vec3::UnitX();
+      dir.normalize();
+      if (i % 5 == 1) {  // one component near a half step of the quantisation, the others scaled to keep |dir| = 1
+        const int k = lane % 3;
+        const double half = (std::floor(127.0 * dir[k]) + 0.5) / 127.0;
+        const double rest = std::sqrt((1.0 - half * half) / std::max(1e-12, 1.0 - dir[k] * dir[k]));
+        dir *= rest;
+        dir[k] = half;
+      }
+      double length = w(rng) * unit;
+      Vec3 closest(u(rng), u(rng), u(rng));
+      if (i % 5 == 2 || i % 5 == 3) {  // along an axis from the origin: the norm is the length, exactly
+        closest = Vec3::Zero();
+        dir = Vec3::Unit(lane % 3) * (lane < 2 ? 1.0 : -1.0);
+        length = std::floor(w(rng)) * unit;                                     // on a step
+        if (i % 5 == 3) length = std::nextafter(length, lane % 2 ? 0.0 : 1.0);  // or beside it
+      }
+      if (i % 97 == 4) length = lane == 0 ? 0.0 : 1e-12;  // not above tiny
+      if (i % 89 == 5) length = 1e3 * unit * (lane + 1);  // beyond the last code
+      centres[lane] = closest + length * dir;
+      at[lane] = &centres[lane];
+      for (int k = 0; k < 3; ++k) q.q[k][lane] = closest[k];
+    }
+    detail::GridEntries4 e;
+    const unsigned lanes = detail::gridEntriesAvx2(at, q, unit, scale, tiny, e);
+    for (int lane = 0; lane < 4; ++lane) {
+      const Vec3 toCentre = centres[lane] - Vec3(q.q[0][lane], q.q[1][lane], q.q[2][lane]);
+      const double d = toCentre.norm();
+      std::uint64_t bitsGot, bitsWant;
+      std::memcpy(&bitsGot, &e.distance[lane], sizeof bitsGot);
+      std::memcpy(&bitsWant, &d, sizeof bitsWant);
+      ASSERT_EQ(bitsGot, bitsWant) << "case " << i << " lane " << lane;
+      if (!(lanes & (1u << lane))) {
+        ++leftOut;
+        ASSERT_FALSE(d > tiny) << "only a distance the scalar path stores without a direction is left to it";
+        continue;
+      }
+      ++encoded;
+      const float rounded = detail::roundDown(d);
+      const std::uint8_t code = detail::distanceCode(rounded, unit);
+      onStep += static_cast<double>(rounded) == code * unit;
+      ASSERT_EQ(e.code[lane], code) << "case " << i << " lane " << lane;
+      ASSERT_EQ(e.finer[lane], detail::finerCode(rounded, code, unit, scale)) << "case " << i << " lane " << lane;
+      const Vec3 dir = toCentre / d;
+      for (int k = 0; k < 3; ++k) {
+        halfStep += std::abs(std::abs(127.0 * dir[k] - std::trunc(127.0 * dir[k])) - 0.5) < 1e-9;
+        ASSERT_EQ(e.direction[lane][k], detail::quantiseDirection(dir[k])) << "case " << i << " lane " << lane;
+      }
+    }
+  }
+  // Units whose division rounds a float distance up onto a whole code (the scalar rounding loop steps back): unit =
+  // f / q for a float f, the distance f along an axis (its norm exactly f).
+  std::uniform_real_distribution<float> fw(0.01f, 1.0f);
+  std::uniform_int_distribution<int> qw(1, 255);
+  int stepped = 0;
+  for (int i = 0; i < 2000000 && stepped < 500; ++i) {
+    const float f = fw(rng);
+    const double unit = static_cast<double>(f) / qw(rng), scale = 256.0 / unit;
+    const double d = static_cast<double>(f), first = std::min(255.0, std::floor(d / unit));
+    if (!(first > 0.0 && first * unit > d)) continue;
+    ++stepped;
+    Vec3 centres[4];
+    const Vec3* at[4];
+    detail::ClosestPoints4 q;
+    for (int lane = 0; lane < 4; ++lane) {
+      centres[lane] = Vec3::Unit(lane % 3) * d;
+      at[lane] = &centres[lane];
+      for (int k = 0; k < 3; ++k) q.q[k][lane] = 0.0;
+    }
+    detail::GridEntries4 e;
+    ASSERT_EQ(detail::gridEntriesAvx2(at, q, unit, scale, tiny, e), 0xFu);
+    const std::uint8_t code = detail::distanceCode(f, unit);
+    for (int lane = 0; lane < 4; ++lane) {
+      ASSERT_EQ(e.code[lane], code) << f << " / " << unit;
+      ASSERT_EQ(e.finer[lane], detail::finerCode(f, code, unit, scale)) << f << " / " << unit;
+    }
+  }
+  EXPECT_GT(stepped, 0) << "no unit made the scalar loop step back";
+  EXPECT_GT(encoded, 700000);
+  EXPECT_GT(leftOut, 0);      // the tiny lengths do reach the scalar path
+  EXPECT_GT(onStep, 1000);    // distances exactly on a code's step were met
+  EXPECT_GT(halfStep, 1000);  // and directions within 1e-9 of a half step
+}
+
+// The build's cheap bounds, four cells of a column at a time: the same verdict as the scalar test on the same
+// centres, also for limits and balls set exactly to a lane's own value (a tie must fall the same way).
+TEST(GridEntriesAvx2, ColumnBoundsAsTheScalarBounds) {
+  if (!detail::packetAvx2()) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::mt19937_64 rng(31);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double h = 0.021;
+  int kept = 0, dropped = 0;
+  for (int i = 0; i < 100000; ++i) {
+    detail::TriangleBounds b;
+    b.planar = i % 7 != 0;
+    b.normal = Vec3(u(rng), u(rng), u(rng)).normalized();
+    b.corner = Vec3(u(rng), u(rng), u(rng));
+    b.mid = b.corner + 0.05 * Vec3(u(rng), u(rng), u(rng));
+    const double x = u(rng), y = u(rng), originZ = u(rng);
+    const std::int64_t z = static_cast<std::int64_t>(std::floor(100.0 * u(rng)));
+    Vec3 centre[4];
+    for (int k = 0; k < 4; ++k) centre[k] = Vec3(x, y, originZ + (static_cast<double>(z + k) + 0.5) * h);
+    const int tie = i % 4;
+    b.limit = i % 3 == 0 ? std::abs(b.normal.dot(centre[tie] - b.corner)) : 0.5 * std::abs(u(rng));
+    b.ball2 = i % 3 == 1 ? (centre[tie] - b.mid).squaredNorm() : 2.0 * std::abs(u(rng));
+    unsigned want = 0;
+    for (int k = 0; k < 4; ++k) {
+      const bool keep = !(b.planar && std::abs(b.normal.dot(centre[k] - b.corner)) > b.limit) &&
+                        !((centre[k] - b.mid).squaredNorm() > b.ball2);
+      want |= static_cast<unsigned>(keep) << k;
+    }
+    ASSERT_EQ(detail::columnCellsAvx2(x, y, originZ, h, z, b), want) << "case " << i;
+    kept += __builtin_popcount(want);
+    dropped += 4 - __builtin_popcount(want);
+  }
+  EXPECT_GT(kept, 10000);
+  EXPECT_GT(dropped, 10000);
+}
+#endif
 
 }  // namespace
