@@ -13,10 +13,8 @@ namespace {
 
 using namespace avx2;
 
-#define CLOD_AVX2 __attribute__((target("avx2"))) inline
-
 // quantiseDirection, lane by lane: clamp to [-1, 1], times 127, toward zero, then half away from zero.
-CLOD_AVX2 __m128i quantise(__m256d u) {
+__attribute__((target("avx2"))) inline __m128i quantise(__m256d u) {
   const __m256d v = times(smaller(larger(u, _mm256_set1_pd(-1.0)), _mm256_set1_pd(1.0)), _mm256_set1_pd(127.0));
   const __m256d whole = _mm256_round_pd(v, _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC);
   const __m256d part = minus(v, whole);  // exact
