@@ -399,8 +399,8 @@ class CandidateCollector {
   }
   static Candidate entry(std::uint64_t key, std::uint32_t t, std::uint8_t code, std::uint8_t finer,
                          const std::int8_t direction[3]) {
-    return {static_cast<std::uint32_t>(key),           static_cast<std::uint32_t>(key >> 32), t, code, finer,
-            {direction[0], direction[1], direction[2]}};
+    const auto low = static_cast<std::uint32_t>(key), high = static_cast<std::uint32_t>(key >> 32);
+    return {low, high, t, code, finer, {direction[0], direction[1], direction[2]}};
   }
 
   const TriangleMesh& mesh_;
