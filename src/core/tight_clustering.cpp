@@ -277,7 +277,15 @@ TriangleItems splitLongItems(const TriangleItems& whole, double maxEdge) {
 }
 
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
-constexpr int kMaxCandidates = 9;
+constexpr int kMaxCandidates = 9;  // the mean point, seven pushed centroids, the box's middle
+// A node whose items' unit normals sum to less than this share of their count faces every way (a ring of a leg, a
+// branch, a closed end) and also gets the middle of its corners' box as a candidate. On thin_bench (2026-11-29): the
+// cylinder of 12 long triangles 0.02 thick 1.06 -> 0.36 outside at 150 spheres and 0.76 -> 0.36 at 500 (95 spheres:
+// its pieces are as long as the rings then), the 0.05 cylinder at 500 0.149 -> 0.070 (316 spheres); but legs at 500
+// 0.084 -> 0.094 and branches at 150 2.89 -> 3.01, at 500 1.45 -> 1.51 (a level's d shares the spheres out between
+// the parts otherwise); the shared meshes the same but elephant at 500 (4% less). With 0.5: the same cylinders,
+// refined_elephant at 500 2.5% more.
+constexpr double kFacingEveryWay = 0.2;
 constexpr int kRays = 32;  // directions of the all-sides estimate
 
 struct Candidate {
@@ -342,9 +350,14 @@ class PatchJudge {
   int placeCandidates(Range r, Candidate* cand) const {
     const double size = static_cast<double>(r.end - r.begin);
     Vec3 meanCentroid = Vec3::Zero(), meanNormal = Vec3::Zero(), meanPoint = Vec3::Zero();
+    Vec3 lo = Vec3::Constant(kInfinity), hi = Vec3::Constant(-kInfinity);
     double depth = 0.0, weights = 0.0;
     for (std::uint32_t i = r.begin; i < r.end; ++i) {
       const std::uint32_t k = order_[i];
+      for (const Vec3& v : items_.corners[k]) {
+        lo = lo.cwiseMin(v);
+        hi = hi.cwiseMax(v);
+      }
       meanCentroid += items_.centroid[k];
       meanNormal += mesh_.normals[items_.triangle[k]];
       if (items_.depthCount[k] > 0) {
@@ -364,6 +377,9 @@ class PatchJudge {
       for (const double f : {2.0, 1.5, 1.0, 0.75, 0.5, 0.25, 0.125})
         cand[count++].centre = meanCentroid + f * depth * inward;
     }
+    // Items facing every way (a ring of a leg or a branch): the middle of their corners' box, on the ring's axis,
+    // where the ball reaching every corner is smallest; the points above lean to the side where more items lie.
+    if (normalLength < kFacingEveryWay * size) cand[count++].centre = 0.5 * (lo + hi);
     int kept = 0;
     for (int j = 0; j < count; ++j)
       if (cand[j].centre.allFinite()) cand[kept++] = cand[j];

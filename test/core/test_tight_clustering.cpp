@@ -573,6 +573,35 @@ TEST(TightClustering, ThinCylinderIsCutIntoRings) {
   }
 }
 
+TEST(TightClustering, RingsOfLongTrianglesSitOnTheAxis) {
+  // A cylinder of radius a = 0.01 and length 0.8 whose 12 sides are long triangles end to end, split into pieces: a
+  // ring of pieces is reached by the smallest ball from its axis, and a centre off the axis needs a larger one. The
+  // placement's points and the pushed centroids lean to the side where more pieces of a ring lie; the middle of the
+  // ring's box does not. At the least d with at most N spheres, away from the ends (where the rings meet the caps'
+  // fans, and arcs of both take spheres of their own): every centre within a / 10 of the axis, every radius at most
+  // 1.3 a. Measured: on the axis to 1e-4 a, radii up to 1.18 a at 150 and 500 spheres (93 in the level, 62 away from
+  // the ends); without the box's middle, up to 0.26 a (149 spheres) and 0.51 a (498) off the axis, radii up to 1.75 a
+  // and 1.19 a.
+  const double a = 0.01, half = 0.4;
+  const auto mesh = cylinderMesh(a, half, 12, 1, "cylinder 0.02 long");
+  const ClodBuilder builder(mesh, std::make_shared<PaperPlacement>(), makeClustering("tight"));
+  for (std::size_t n : {150u, 500u}) {
+    const ClodSphereSet set = builder.buildAtMost(n);
+    ASSERT_LE(set.size(), n);
+    std::size_t inner = 0;
+    double off = 0.0, largest = 0.0;
+    for (std::size_t i = 0; i < set.size(); ++i) {
+      if (std::abs(set.centres[i].x()) > half - 2.0 * a) continue;
+      ++inner;
+      off = std::max(off, std::hypot(set.centres[i].y(), set.centres[i].z()));
+      largest = std::max(largest, set.radii[i]);
+    }
+    EXPECT_GT(inner, 40u) << set.size() << " spheres";
+    EXPECT_LE(off, 0.1 * a) << set.size() << " spheres";
+    EXPECT_LE(largest, 1.3 * a) << set.size() << " spheres";
+  }
+}
+
 TEST(TightClustering, PointsOnlyClustersStayWithinHalfD) {
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> u(0.0, 1.0);

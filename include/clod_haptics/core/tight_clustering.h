@@ -40,7 +40,9 @@ namespace clod_haptics {
  * A node's centre is the candidate with the least excess among the mean of the placement's points
  * on its triangles and the mean of the triangles' centroids pushed inward along their mean normal by
  * 2, 3/2, 1, 3/4, 1/2, 1/4 and 1/8 of the mean depth of those points below their triangles (twice the depth
- * is the middle of a thin part for PaperPlacement, a quarter of the way across). Any placement
+ * is the middle of a thin part for PaperPlacement, a quarter of the way across), and for a node whose items face
+ * every way (their unit normals sum to less than a fifth of their count: a ring of a leg or a branch) the middle of
+ * its corners' box too, on the ring's axis, where the ball is smallest. Any placement
  * works (the default is PaperPlacement: points a quarter of the way to the opposite triangle).
  * Handing over (when the builder asks for lists): the centres stay, and each triangle (or piece) goes to the
  * sphere it lies deepest in among those that hold it whole and passed the bound (its own, or a neighbour's), for up
