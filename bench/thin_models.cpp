@@ -233,6 +233,18 @@ std::vector<ThinModel> thinModels() {
     }
     models.push_back({"legs", "ellipsoid body 0.7 x 0.36 x 0.3 on four legs 0.04 thick", b.mesh("legs")});
   }
+  {
+    // Held out (added 2026-11-29, after the box's middle was chosen on cylinder-0.02-long): a body on six thinner legs
+    // leaning out, three of them long triangles end to end, three in fine rings.
+    Builder b;
+    b.ellipsoid(Vec3(0, 0, 0.25), Vec3(0.25, 0.12, 0.1), 64, 32);
+    for (int k = 0; k < 6; ++k) {
+      const double x = -0.16 + 0.16 * (k / 2), y = k % 2 ? -0.06 : 0.06;
+      b.cylinder(Vec3(x, y, 0.2), Vec3(x * 1.6, y * 4.0, -0.35), 0.01, 12, k % 2 ? 1 : 40);
+    }
+    models.push_back({"insect", "ellipsoid body 0.5 x 0.24 x 0.2 on six legs 0.02 thick, three of long triangles",
+                      b.mesh("insect")});
+  }
   // Curved thin shells (added 2026-11-28, after the thin-patch settling was tuned on the flat plates: held out).
   {
     Builder b;
