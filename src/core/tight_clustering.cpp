@@ -279,12 +279,13 @@ TriangleItems splitLongItems(const TriangleItems& whole, double maxEdge) {
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 constexpr int kMaxCandidates = 9;  // the mean point, seven pushed centroids, the box's middle
 // A node whose items' unit normals sum to less than this share of their count faces every way (a ring of a leg, a
-// branch, a closed end) and also gets the middle of its corners' box as a candidate. On thin_bench (2026-11-29): the
-// cylinder of 12 long triangles 0.02 thick 1.06 -> 0.36 outside at 150 spheres and 0.76 -> 0.36 at 500 (95 spheres:
-// its pieces are as long as the rings then), the 0.05 cylinder at 500 0.149 -> 0.070 (316 spheres); but legs at 500
-// 0.084 -> 0.094 and branches at 150 2.89 -> 3.01, at 500 1.45 -> 1.51 (a level's d shares the spheres out between
-// the parts otherwise); the shared meshes the same but elephant at 500 (4% less). With 0.5: the same cylinders,
-// refined_elephant at 500 2.5% more.
+// branch, a closed end, both sheets of a plate) and also gets the middle of its corners' box as a candidate. On
+// thin_bench (2026-11-29): the cylinder of 12 long triangles 0.02 thick 1.06 -> 0.36 outside at 150 spheres and 0.76
+// -> 0.36 at 500 (95 spheres: its pieces are as long as the rings then), the 0.05 cylinder at 500 0.149 -> 0.070 (316
+// spheres); but legs at 500 0.084 -> 0.094, the held-out insect (six legs 0.02 thick on a body) 3 and 5% more, and
+// branches at 150 2.89 -> 3.01, at 500 1.45 -> 1.51 (a level's d shares the spheres out between the parts otherwise);
+// the shared meshes the same but elephant at 500 (4% less). With 0.5: the same cylinders, refined_elephant at 500
+// 2.5% more.
 constexpr double kFacingEveryWay = 0.2;
 constexpr int kRays = 32;  // directions of the all-sides estimate
 
