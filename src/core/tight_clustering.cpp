@@ -351,14 +351,9 @@ class PatchJudge {
   int placeCandidates(Range r, Candidate* cand) const {
     const double size = static_cast<double>(r.end - r.begin);
     Vec3 meanCentroid = Vec3::Zero(), meanNormal = Vec3::Zero(), meanPoint = Vec3::Zero();
-    Vec3 lo = Vec3::Constant(kInfinity), hi = Vec3::Constant(-kInfinity);
     double depth = 0.0, weights = 0.0;
     for (std::uint32_t i = r.begin; i < r.end; ++i) {
       const std::uint32_t k = order_[i];
-      for (const Vec3& v : items_.corners[k]) {
-        lo = lo.cwiseMin(v);
-        hi = hi.cwiseMax(v);
-      }
       meanCentroid += items_.centroid[k];
       meanNormal += mesh_.normals[items_.triangle[k]];
       if (items_.depthCount[k] > 0) {
@@ -379,8 +374,14 @@ class PatchJudge {
         cand[count++].centre = meanCentroid + f * depth * inward;
     }
     // Items facing every way (a ring of a leg or a branch): the middle of their corners' box, on the ring's axis,
-    // where the ball reaching every corner is smallest; the points above lean to the side where more items lie.
-    if (normalLength < kFacingEveryWay * size) cand[count++].centre = 0.5 * (lo + hi);
+    // where the ball reaching every corner is smallest; the points above lean to the side where more items lie. The
+    // corners are read for it only here: most nodes face one way.
+    if (normalLength < kFacingEveryWay * size) {
+      Eigen::AlignedBox3d box;
+      for (std::uint32_t i = r.begin; i < r.end; ++i)
+        for (const Vec3& v : items_.corners[order_[i]]) box.extend(v);
+      cand[count++].centre = box.center();
+    }
     int kept = 0;
     for (int j = 0; j < count; ++j)
       if (cand[j].centre.allFinite()) cand[kept++] = cand[j];
