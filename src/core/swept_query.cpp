@@ -104,7 +104,12 @@ inline bool planeBoundMisses(const Vec3& c, double rho, const Vec3& n, double th
   const Vec3 mp = m - s0 * n, dp = d - sd * n;  // the centre's motion projected on the plane
   const double dpp = dp.squaredNorm();
   const double t = dpp > 0.0 ? std::clamp(-mp.dot(dp) / dpp, 0.0, end) : 0.0;
-  const double along = std::max(0.0, (mp + t * dp).norm() - rho);
+  // The square root only between the two easy cases: a projection within rho (along 0, and across <= reach above)
+  // or beyond rho + reach (along > reach) settles without it.
+  const double q2 = (mp + t * dp).squaredNorm();
+  if (q2 <= rho * rho) return false;
+  if (q2 > (rho + reach) * (rho + reach) * (1.0 + 1e-12)) return true;
+  const double along = std::sqrt(q2) - rho;
   return across * across + along * along > reach * reach;
 }
 
@@ -218,12 +223,13 @@ struct SweptSphereQuery::Best {
    */
   bool below(const NodeSlab& slab) {
     if (!(slab.radius < std::numeric_limits<double>::infinity()) || !planeReady()) return false;
-    const double along = n.dot(slab.normal), across = (n - along * slab.normal).norm();
+    // across sqrt(radius^2 - thick^2) as one square root (its rounding within the margin below).
+    const double along = n.dot(slab.normal), across2 = (n - along * slab.normal).squaredNorm();
     const double rise =
         std::abs(along) * slab.radius <= slab.thick
             ? slab.radius
             : std::abs(along) * slab.thick +
-                  across * std::sqrt(std::max(0.0, slab.radius * slab.radius - slab.thick * slab.thick));
+                  std::sqrt(across2 * std::max(0.0, slab.radius * slab.radius - slab.thick * slab.thick));
     // The slab's normal is unit to rounding: the rise gets a relative margin, the centre's height its own.
     return n.dot(slab.centre) - offset + rise * (1.0 + 1e-9) + 1e-9 * slab.thick < clearance();
   }
@@ -607,12 +613,23 @@ namespace {
 // squared distance of two boxes adds the gaps on each axis) or from the node's slab and ball (planeBoundMisses on
 // that part, with reach: R and its rounding slack). Both drop the nodes beside a sphere sliding over a surface,
 // which the grown box keeps for R on either side of its path.
-inline double enterNode(const BoxNode& n, const NodeSlab& slab, const Vec3& a, const Vec3& d, double R, double reach,
-                        double tMax) {
+// inv: 1 / d per axis (unused where d is 0), computed once per sweep (clipToBox's divisions, the same times).
+inline double enterNode(const BoxNode& n, const NodeSlab& slab, const Vec3& a, const Vec3& d, const Vec3& inv, double R,
+                        double reach, double tMax) {
   double t0 = 0.0, t1 = 1.0;
-  const Vec3 grow = Vec3::Constant(R);
   const Vec3 lo(n.lo[0], n.lo[1], n.lo[2]), hi(n.hi[0], n.hi[1], n.hi[2]);
-  if (!clipToBox(lo - grow, hi + grow, a, d, 0.0, t0, t1)) return kNever;
+  for (int k = 0; k < 3; ++k) {
+    const double l = lo[k] - R, h = hi[k] + R;
+    if (d[k] == 0.0) {
+      if (a[k] < l || a[k] > h) return kNever;
+      continue;
+    }
+    double enter = (l - a[k]) * inv[k], leave = (h - a[k]) * inv[k];
+    if (enter > leave) std::swap(enter, leave);
+    t0 = std::max(t0, enter);
+    t1 = std::min(t1, leave);
+  }
+  if (!(t0 <= t1)) return kNever;
   t1 = std::min(t1, tMax);
   if (t1 < t0) return t0;  // after the best time: the caller skips it
   const Vec3 p0 = a + t0 * d, p1 = a + t1 * d;
@@ -631,28 +648,62 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
   const NodeSlab* slabs = tree_->slabs.data();  // one per node (meshBoxTreeOf)
   // The grown box holds every centre within R of the node's triangles; its rounding is covered by a margin.
   const double grow = R * (1.0 + 1e-12) + 1e-12 * magnitudeOf(a, a + d);
+  Vec3 inv = Vec3::Zero();
+  for (int k = 0; k < 3; ++k)
+    if (d[k] != 0.0) inv[k] = 1.0 / d[k];
   struct Item {
     std::uint32_t node;
     double t;
   };
   Item stack[128];
   int top = 0;
-  const double t = enterNode(nodes[0], slabs[0], a, d, grow, best.reach, best.toi);
+#if defined(CLOD_PACKET_AVX2)
+  detail::RecordFilterSweep filter{{a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, 1.0, best.invdd, R, best.reach};
+#endif
+  const double t = enterNode(nodes[0], slabs[0], a, d, inv, grow, best.reach, best.toi);
   if (t != kNever) stack[top++] = {0, t};
   while (top > 0) {
     const Item item = stack[--top];
     if (item.t > best.toi) continue;  // every contact inside comes later
     const BoxNode& node = nodes[item.node];
     if (node.count > 0) {
+      // The leaf's records requested together: a walk into a region it has not touched lately waits for each.
+      for (std::uint32_t i = node.first; i < node.first + node.count; ++i) __builtin_prefetch(recordOf(order[i]));
+#if defined(CLOD_PACKET_AVX2)
+      // A leaf's triangles (kMeshBoxTreeLeafSize: 4) through the records' ball and plane bounds four at a time, as
+      // sweepCell's batches.
+      if (detail::packetAvx2()) {
+        for (std::uint32_t i = node.first, end = node.first + node.count; i < end;) {
+          std::uint32_t held[4];
+          const double* record[4];
+          int n = 0;
+          for (; i < end && n < 4; ++i)
+            if (best.admit(order[i])) held[n++] = order[i];
+          if (n == 0) continue;
+          for (int k = 0; k < 4; ++k) record[k] = recordOf(held[std::min(k, n - 1)]);
+          filter.end = std::min(1.0, best.toi);
+          const unsigned keep = detail::recordFilterAvx2(record, filter) & ((1u << n) - 1u);
+          for (int k = 0; k < n; ++k)
+            if (keep & (1u << k)) testRecord(held[k], a, d, R, best);
+        }
+        continue;
+      }
+#endif
       for (std::uint32_t i = node.first; i < node.first + node.count; ++i) testTriangle(order[i], a, d, R, best);
       continue;
     }
     const std::uint32_t left = item.node + 1, right = node.first;
+    // Both children's lines requested before either is read (the right child lies elsewhere in the array).
+    __builtin_prefetch(&nodes[right]);
+    __builtin_prefetch(&slabs[left]);
+    __builtin_prefetch(&slabs[right]);
+    __builtin_prefetch(reinterpret_cast<const char*>(&slabs[left]) + 63);
+    __builtin_prefetch(reinterpret_cast<const char*>(&slabs[right]) + 63);
     const double tl = best.below(slabs[left]) ? kNever
-                                              : enterNode(nodes[left], slabs[left], a, d, grow, best.reach, best.toi),
+                                              : enterNode(nodes[left], slabs[left], a, d, inv, grow, best.reach, best.toi),
                  tr = best.below(slabs[right])
                           ? kNever
-                          : enterNode(nodes[right], slabs[right], a, d, grow, best.reach, best.toi);
+                          : enterNode(nodes[right], slabs[right], a, d, inv, grow, best.reach, best.toi);
     // The nearer child on top of the stack.
     if (tl <= tr) {
       if (tr != kNever) stack[top++] = {right, tr};
