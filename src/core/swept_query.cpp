@@ -699,8 +699,9 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
     __builtin_prefetch(&slabs[right]);
     __builtin_prefetch(reinterpret_cast<const char*>(&slabs[left]) + 63);
     __builtin_prefetch(reinterpret_cast<const char*>(&slabs[right]) + 63);
-    const double tl = best.below(slabs[left]) ? kNever
-                                              : enterNode(nodes[left], slabs[left], a, d, inv, grow, best.reach, best.toi),
+    const double tl = best.below(slabs[left])
+                          ? kNever
+                          : enterNode(nodes[left], slabs[left], a, d, inv, grow, best.reach, best.toi),
                  tr = best.below(slabs[right])
                           ? kNever
                           : enterNode(nodes[right], slabs[right], a, d, inv, grow, best.reach, best.toi);
