@@ -355,6 +355,25 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
   }
   // One tree over the mesh, shared: the grid detector's, else the mesh's own when it fits, else built here.
   tree_ = detector_ && detector_->meshTree() ? detector_->meshTree() : meshBoxTreeOf(*mesh_);
+  // The small subtrees, bottom up (a child's index is larger than its parent's): a node's triangles are its
+  // children's, the left ones first in the order array when they follow on.
+  const std::vector<BoxNode>& nodes = tree_->nodes;
+  small_.assign(nodes.size(), 0);
+  std::vector<std::uint32_t> first(nodes.size(), 0);
+  for (std::size_t i = nodes.size(); i-- > 0;) {
+    const BoxNode& n = nodes[i];
+    if (n.count > 0) {
+      first[i] = n.first;
+      small_[i] = n.count <= kSmallSubtree ? static_cast<std::uint8_t>(n.count) : 0;
+      continue;
+    }
+    const std::size_t left = i + 1, right = n.first;
+    if (right >= nodes.size() || right <= i) continue;  // not a tree meshBoxTreeOf builds: no shortcut
+    first[i] = first[left];
+    const std::uint32_t count = std::uint32_t(small_[left]) + small_[right];
+    if (small_[left] > 0 && small_[right] > 0 && first[left] + small_[left] == first[right] && count <= kSmallSubtree)
+      small_[i] = static_cast<std::uint8_t>(count);
+  }
 }
 
 const double* SweptSphereQuery::recordOf(std::uint32_t t) const noexcept { return records_[t].v; }
@@ -666,14 +685,18 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
     const Item item = stack[--top];
     if (item.t > best.toi) continue;  // every contact inside comes later
     const BoxNode& node = nodes[item.node];
-    if (node.count > 0) {
-      // The leaf's records requested together: a walk into a region it has not touched lately waits for each.
-      for (std::uint32_t i = node.first; i < node.first + node.count; ++i) __builtin_prefetch(recordOf(order[i]));
+    const std::uint32_t few = small_[item.node];
+    if (few > 0) {
+      // Its triangles lie together in the order array from its leftmost leaf's on (left children follow their parent).
+      std::uint32_t leftmost = item.node;
+      while (nodes[leftmost].count == 0) ++leftmost;
+      const std::uint32_t from = nodes[leftmost].first;
+      // The records requested together: a walk into a region it has not touched lately waits for each.
+      for (std::uint32_t i = from; i < from + few; ++i) __builtin_prefetch(recordOf(order[i]));
 #if defined(CLOD_PACKET_AVX2)
-      // A leaf's triangles (kMeshBoxTreeLeafSize: 4) through the records' ball and plane bounds four at a time, as
-      // sweepCell's batches.
+      // Its triangles through the records' ball and plane bounds four at a time, as sweepCell's batches.
       if (detail::packetAvx2()) {
-        for (std::uint32_t i = node.first, end = node.first + node.count; i < end;) {
+        for (std::uint32_t i = from, end = from + few; i < end;) {
           std::uint32_t held[4];
           const double* record[4];
           int n = 0;
@@ -689,6 +712,10 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
         continue;
       }
 #endif
+      for (std::uint32_t i = from; i < from + few; ++i) testTriangle(order[i], a, d, R, best);
+      continue;
+    }
+    if (node.count > 0) {
       for (std::uint32_t i = node.first; i < node.first + node.count; ++i) testTriangle(order[i], a, d, R, best);
       continue;
     }

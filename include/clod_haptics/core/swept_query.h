@@ -142,6 +142,15 @@ class SweptSphereQuery {
   };
   std::vector<Record> records_;
   std::shared_ptr<const MeshBoxTree> tree_;  // box tree over the triangles and its slabs (local frame), shared
+  /**
+   * A subtree of at most this many triangles (two leaves) is not walked: its triangles go straight to the records'
+   * filter, four at a time. On the 0.1 r ellipsoid (122k triangles, every sweep walking the tree) the proxy's ticks
+   * at 2 m/s were 11% faster than with the leaves alone, on the 0.25 r one the same; 16 and 32 were no better.
+   */
+  static constexpr std::uint32_t kSmallSubtree = 8;
+  // Per node of tree_: the number of triangles below it when it is a leaf or a subtree of at most kSmallSubtree
+  // triangles lying together in the order array (from its leftmost leaf's first), else 0.
+  std::vector<std::uint8_t> small_;
 };
 
 }  // namespace clod_haptics
