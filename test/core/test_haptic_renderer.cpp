@@ -20,6 +20,7 @@
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/sphere_set.h"
+#include "clod_haptics/core/swept_query.h"
 #include "test_helpers.h"
 
 namespace {
@@ -252,6 +253,90 @@ TEST(HapticRenderer, ProxyNeverCrossesRandomThinPlatesOrSheets) {
     EXPECT_EQ(inside, 0u) << "plate " << plate;
   }
   EXPECT_GT(touching, ticks / 4) << "the paths must press on the plates";
+}
+
+// Thin parts other than plates, posed at random (data the proxy was not tuned on): legs 0.5 to 1.5 mm wide (6 to 24
+// sides) and knife wedges (a prism whose section is an isosceles triangle with an apex of 10 to 30 degrees), pushed
+// across their axis or into their edge from random sides at 0.05 to 3 m/s, with friction, damping and force shading
+// on or off. A pass through such a part between two ticks need not end on its far side (a leg's far side is
+// anywhere around it), so the criterion is the chord: the straight segment between two consecutive proxies never
+// cuts the part (a proxy sliding round a leg keeps r from its surface, and its chords at up to 3 mm a tick pass more
+// than r from the axis), and the proxy never ends a tick within r (less rounding) of it.
+TEST(HapticRenderer, ProxyNeverCutsThroughRandomLegsOrWedges) {
+  std::mt19937_64 rng(1129);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::size_t ticks = 0, touching = 0;
+  for (int part = 0; part < 12; ++part) {
+    const bool wedge = part % 2 == 1;
+    std::vector<Vec3> v;
+    std::vector<Triangle> t;
+    if (!wedge) {  // a leg along z, 60 mm long, closed by two fans
+      const double radius = 0.00025 * (1.0 + 2.0 * u(rng));
+      const int sides = 6 + static_cast<int>(u(rng) * 19.0);
+      for (double z : {-0.03, 0.03}) {
+        for (int k = 0; k < sides; ++k) {
+          const double a = 2.0 * M_PI * k / sides;
+          v.push_back(Vec3(radius * std::cos(a), radius * std::sin(a), z));
+        }
+        v.push_back(Vec3(0.0, 0.0, z));
+      }
+      const std::uint32_t n = static_cast<std::uint32_t>(sides), top = n + 1, c0 = n, c1 = 2 * n + 1;
+      for (std::uint32_t k = 0; k < n; ++k) {
+        const std::uint32_t k1 = (k + 1) % n;
+        t.push_back({k, k1, top + k1});
+        t.push_back({k, top + k1, top + k});
+        t.push_back({c0, k1, k});
+        t.push_back({c1, top + k, top + k1});
+      }
+    } else {  // a wedge along z, its apex edge on the z axis, 10 mm deep towards -x
+      const double apex = (10.0 + 20.0 * u(rng)) * M_PI / 180.0, depth = 0.01, h = depth * std::tan(apex / 2.0);
+      v = {{0, 0, -0.03}, {-depth, h, -0.03}, {-depth, -h, -0.03}, {0, 0, 0.03}, {-depth, h, 0.03}, {-depth, -h, 0.03}};
+      t = {{0, 2, 1}, {3, 4, 5}, {0, 1, 4}, {0, 4, 3}, {1, 2, 5}, {1, 5, 4}, {2, 0, 3}, {2, 3, 5}};
+    }
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = Eigen::Quaterniond(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized().matrix();
+    pose.translation() = Vec3(u(rng), u(rng), u(rng)) * 0.05;
+    for (Vec3& x : v) x = pose * x;
+    const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(std::move(v), std::move(t), "random thin part"));
+    const SweptScene scene = sceneOf(mesh, kRadius);
+    std::size_t inside = 0, cuts = 0;
+    for (int push = 0; push < 8; ++push) {
+      ProxyParameters params;
+      params.radius = kRadius;
+      params.stiffness = kStiffness;
+      if (u(rng) < 0.5) {
+        params.muStatic = u(rng);
+        params.muDynamic = params.muStatic * u(rng);
+      }
+      params.damping = u(rng) < 0.3 ? 1.0 : 0.0;
+      params.forceShading = u(rng) < 0.3;
+      // Towards a point of the axis (the edge), within 60 degrees of square to it; a wedge from its apex side.
+      const double around = wedge ? (u(rng) - 0.5) * 2.6 : u(rng) * 2.0 * M_PI, tilt = (u(rng) - 0.5) * 2.1;
+      const Vec3 aim = pose * Vec3(0.0, 0.0, (u(rng) - 0.5) * 0.02);
+      const Vec3 across = pose.linear() * Vec3(std::cos(around), std::sin(around), 0.0);
+      const Vec3 motion = -(std::cos(tilt) * across + std::sin(tilt) * (pose.linear() * Vec3::UnitZ())).normalized();
+      const double speed = 0.05 * std::pow(60.0, u(rng));  // 0.05 to 3 m/s
+      const std::vector<Vec3> devicePath = path(aim - 0.008 * motion, aim + 0.012 * motion, speed);
+      HapticRenderer renderer(params);
+      renderer.reset(devicePath.front());
+      Vec3 last = devicePath.front();
+      ProxyTick tick;
+      for (const Vec3& device : devicePath) {
+        renderer.update(scene, device, kDt, tick);
+        ++ticks;
+        touching += tick.contact;
+        if (bruteForceQuery(*mesh, tick.proxy, kRadius * (1.0 - 1e-6)).contact && ++inside <= 2)
+          ADD_FAILURE() << "part " << part << ": the proxy ends a tick inside at " << tick.proxy.transpose();
+        if (bruteForceSweep(*mesh, last, tick.proxy, 1e-9).hit && ++cuts <= 2)
+          ADD_FAILURE() << "part " << part << (wedge ? " (wedge)" : " (leg)") << ": the proxy jumped through it at "
+                        << speed << " m/s";
+        last = tick.proxy;
+      }
+    }
+    EXPECT_EQ(inside, 0u) << "part " << part;
+    EXPECT_EQ(cuts, 0u) << "part " << part;
+  }
+  EXPECT_GT(touching, ticks / 4) << "the pushes must press on the parts";
 }
 
 TEST(HapticRenderer, PenaltyModelPopsThroughTheThinPlate) {  // the criterion above can fail
