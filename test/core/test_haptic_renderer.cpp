@@ -159,6 +159,30 @@ TEST(HapticRenderer, ProxyStaysOnTheEntrySideOfAThinPlate) {
 // at random; the device goes back and forth through them 40 times at 0.01 to 4 m/s, with random friction, damping and
 // force shading. The proxy never ends a tick inside (brute force) and never changes side of the plate's middle while
 // over its inside (a pop-through; round the rim it may).
+// Any rotation, shifted by up to 5 cm.
+Eigen::Isometry3d randomPose(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = Eigen::Quaterniond(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized().matrix();
+  pose.translation() = Vec3(u(rng), u(rng), u(rng)) * 0.05;
+  return pose;
+}
+
+// The shipped pointer and stiffness with friction (half the time), damping and force shading (each 30%) at random.
+ProxyParameters randomStylus(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  ProxyParameters params;
+  params.radius = kRadius;
+  params.stiffness = kStiffness;
+  if (u(rng) < 0.5) {
+    params.muStatic = u(rng);
+    params.muDynamic = params.muStatic * u(rng);
+  }
+  params.damping = u(rng) < 0.3 ? 1.0 : 0.0;
+  params.forceShading = u(rng) < 0.3;
+  return params;
+}
+
 TEST(HapticRenderer, ProxyNeverCrossesRandomThinPlatesOrSheets) {
   std::mt19937_64 rng(2026);
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -206,22 +230,11 @@ TEST(HapticRenderer, ProxyNeverCrossesRandomThinPlatesOrSheets) {
         t.push_back({at(top, p), at(bottom, q), at(top, q)});
       }
     }
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.linear() = Eigen::Quaterniond(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized().matrix();
-    pose.translation() = Vec3(u(rng), u(rng), u(rng)) * 0.05;
+    const Eigen::Isometry3d pose = randomPose(rng);
     for (Vec3& x : v) x = pose * x;
     const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(std::move(v), std::move(t), "random plate"));
     const SweptScene scene = sceneOf(mesh, kRadius);  // the grid for the pointer, as the shipped node builds it
-    ProxyParameters params;
-    params.radius = kRadius;
-    params.stiffness = kStiffness;
-    if (u(rng) < 0.5) {
-      params.muStatic = u(rng);
-      params.muDynamic = params.muStatic * u(rng);
-    }
-    params.damping = u(rng) < 0.3 ? 1.0 : 0.0;
-    params.forceShading = u(rng) < 0.3;
-    HapticRenderer renderer(params);
+    HapticRenderer renderer(randomStylus(rng));
     const Eigen::Isometry3d local = pose.inverse();
     Vec3 device = pose * Vec3(0.0, 0.0, 0.01);
     renderer.reset(device);
@@ -293,23 +306,13 @@ TEST(HapticRenderer, ProxyNeverCutsThroughRandomLegsOrWedges) {
       v = {{0, 0, -0.03}, {-depth, h, -0.03}, {-depth, -h, -0.03}, {0, 0, 0.03}, {-depth, h, 0.03}, {-depth, -h, 0.03}};
       t = {{0, 2, 1}, {3, 4, 5}, {0, 1, 4}, {0, 4, 3}, {1, 2, 5}, {1, 5, 4}, {2, 0, 3}, {2, 3, 5}};
     }
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.linear() = Eigen::Quaterniond(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized().matrix();
-    pose.translation() = Vec3(u(rng), u(rng), u(rng)) * 0.05;
+    const Eigen::Isometry3d pose = randomPose(rng);
     for (Vec3& x : v) x = pose * x;
     const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(std::move(v), std::move(t), "random thin part"));
     const SweptScene scene = sceneOf(mesh, kRadius);
     std::size_t inside = 0, cuts = 0;
     for (int push = 0; push < 8; ++push) {
-      ProxyParameters params;
-      params.radius = kRadius;
-      params.stiffness = kStiffness;
-      if (u(rng) < 0.5) {
-        params.muStatic = u(rng);
-        params.muDynamic = params.muStatic * u(rng);
-      }
-      params.damping = u(rng) < 0.3 ? 1.0 : 0.0;
-      params.forceShading = u(rng) < 0.3;
+      const ProxyParameters params = randomStylus(rng);
       // Towards a point of the axis (the edge), within 60 degrees of square to it; a wedge from its apex side.
       const double around = wedge ? (u(rng) - 0.5) * 2.6 : u(rng) * 2.0 * M_PI, tilt = (u(rng) - 0.5) * 2.1;
       const Vec3 aim = pose * Vec3(0.0, 0.0, (u(rng) - 0.5) * 0.02);
