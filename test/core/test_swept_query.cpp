@@ -449,9 +449,10 @@ TEST(SweptSphereQuery, SameAsBruteForceOnTheContactShell) {
       const std::string label = "shape " + std::to_string(s) + (shift.isZero() ? "" : " far");
       expectSameAsBruteForce(*mesh, withGrid, sweeps, r, label + " grid");
       expectSameAsBruteForce(*mesh, treeOnly, sweeps, r, label + " tree");
-      // The grid's cell scan without its AVX2 filter (the form a CPU without AVX2 runs).
+      // The grid's cell scan and the tree's leaves without their AVX2 filters (the form a CPU without AVX2 runs).
       detail::usePacketAvx2(false);
       expectSameAsBruteForce(*mesh, withGrid, sweeps, r, label + " grid, no AVX2");
+      expectSameAsBruteForce(*mesh, treeOnly, sweeps, r, label + " tree, no AVX2");
       detail::usePacketAvx2(true);
     }
 }
@@ -499,6 +500,9 @@ TEST(SweptSphereQuery, SameAsBruteForceInCrowdedCells) {
   EXPECT_GT(crowded, sweeps.size() / 2) << "the height field must crowd the cells beyond kTreeAboveEntries";
   EXPECT_GT(intoCrowded, 20u) << "sweeps from a sparse cell into a crowded one";
   expectSameAsBruteForce(*mesh, query, sweeps, r, "crowded height field");
+  detail::usePacketAvx2(false);  // the tree's leaves and small subtrees without the records' AVX2 filter
+  expectSameAsBruteForce(*mesh, query, sweeps, r, "crowded height field, no AVX2");
+  detail::usePacketAvx2(true);
 }
 
 #if defined(CLOD_PACKET_AVX2)
