@@ -370,7 +370,7 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
     const std::size_t left = i + 1, right = n.first;
     if (right >= nodes.size() || right <= i) continue;  // not a tree meshBoxTreeOf builds: no shortcut
     first[i] = first[left];
-    const std::uint32_t count = std::uint32_t(small_[left]) + small_[right];
+    const std::uint32_t count = static_cast<std::uint32_t>(small_[left]) + small_[right];
     if (small_[left] > 0 && small_[right] > 0 && first[left] + small_[left] == first[right] && count <= kSmallSubtree)
       small_[i] = static_cast<std::uint8_t>(count);
   }

@@ -145,7 +145,8 @@ class SweptSphereQuery {
   /**
    * A subtree of at most this many triangles (two leaves) is not walked: its triangles go straight to the records'
    * filter, four at a time. On the 0.1 r ellipsoid (122k triangles, every sweep walking the tree) the proxy's ticks
-   * at 2 m/s were 11% faster than with the leaves alone, on the 0.25 r one the same; 16 and 32 were no better.
+   * at 2 m/s were 6 to 11% faster than with the leaves alone (two sets of alternating runs), on the 0.25 r one the
+   * same; 16 and 32 were no better.
    */
   static constexpr std::uint32_t kSmallSubtree = 8;
   // Per node of tree_: the number of triangles below it when it is a leaf or a subtree of at most kSmallSubtree
