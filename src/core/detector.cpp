@@ -204,15 +204,7 @@ inline void walkBoxTree(const BoxNode* nodes, std::uint32_t root, const std::uin
       continue;
     }
     const std::uint32_t left = static_cast<std::uint32_t>(&node - nodes) + 1, right = node.first;
-    // The children's lines requested together (the right child lies elsewhere in the array; each slab is read when
-    // its child is popped): a walk through a region it has not touched lately waits for each in turn otherwise.
-    __builtin_prefetch(&nodes[right]);
-    if (slabs != nullptr) {
-      __builtin_prefetch(&slabs[left]);
-      __builtin_prefetch(&slabs[right]);
-      __builtin_prefetch(reinterpret_cast<const char*>(&slabs[left]) + 63);
-      __builtin_prefetch(reinterpret_cast<const char*>(&slabs[right]) + 63);
-    }
+    prefetchChildren(nodes, slabs, left, right);  // each slab is read when its child is popped
     const double dl = squaredDistanceToNode(nodes[left], p.x(), p.y(), p.z());
     const double dr = squaredDistanceToNode(nodes[right], p.x(), p.y(), p.z());
     // Nearer child last on the stack, so it is searched first and shrinks the radius sooner.

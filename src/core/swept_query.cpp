@@ -16,6 +16,21 @@ namespace {
 
 constexpr double kNever = std::numeric_limits<double>::infinity();
 
+#if defined(CLOD_PACKET_AVX2)
+// The triangles held[0, n) (n at most 4) through the records' ball and plane bounds in AVX2, looser than the scalar
+// ones, over the part of the sweep up to end (the rest is the sweep's own); test(t) for each one kept, in order.
+template <class RecordOf, class Test>
+inline void filterFour(const std::uint32_t* held, int n, double end, detail::RecordFilterSweep& sweep,
+                       const RecordOf& recordOf, const Test& test) {
+  const double* record[4];
+  for (int k = 0; k < 4; ++k) record[k] = recordOf(held[std::min(k, n - 1)]);
+  sweep.end = end;
+  const unsigned keep = detail::recordFilterAvx2(record, sweep) & ((1u << n) - 1u);
+  for (int k = 0; k < n; ++k)
+    if (keep & (1u << k)) test(held[k]);
+}
+#endif
+
 // First t in [0, 1] at which the centre a + t d enters the sphere of radius R around v, the centre
 // starting outside it (m = a - v). C / (-B + sqrt(disc)) is the smaller root without cancellation.
 inline double sphereEntry(const Vec3& m, const Vec3& d, double dd, double R) {
@@ -583,19 +598,14 @@ void SweptSphereQuery::sweepCell(const CellGrid::CellRef& ref, std::uint64_t key
     std::uint32_t batch[kBatch];
     int held = 0;
     detail::RecordFilterSweep sweep{{a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, 1.0, best.invdd, R, best.reach};
+    const auto record = [this](std::uint32_t t) { return recordOf(t); };
     auto flush = [&]() {
-      for (int base = 0; base < held; base += 4) {
-        const int n = std::min(4, held - base);
-        const double* record[4];
-        for (int k = 0; k < 4; ++k) record[k] = recordOf(batch[base + std::min(k, n - 1)]);
-        sweep.end = std::min(1.0, best.toi);  // the rest is the sweep's own
-        const unsigned keep = detail::recordFilterAvx2(record, sweep) & ((1u << n) - 1u);
-        for (int k = 0; k < n; ++k) {
-          if (!(keep & (1u << k))) continue;
-          testRecord(batch[base + k], a, d, R, best);
-          if (best.toi < end) shrink();
-        }
-      }
+      for (int base = 0; base < held; base += 4)
+        filterFour(batch + base, std::min(4, held - base), std::min(1.0, best.toi), sweep, record,
+                   [&](std::uint32_t t) {
+                     testRecord(t, a, d, R, best);
+                     if (best.toi < end) shrink();
+                   });
       held = 0;
     };
     double boundsEnd = end;
@@ -678,6 +688,7 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
   int top = 0;
 #if defined(CLOD_PACKET_AVX2)
   detail::RecordFilterSweep filter{{a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, 1.0, best.invdd, R, best.reach};
+  const auto record = [this](std::uint32_t t) { return recordOf(t); };
 #endif
   const double t = enterNode(nodes[0], slabs[0], a, d, inv, grow, best.reach, best.toi);
   if (t != kNever) stack[top++] = {0, t};
@@ -698,16 +709,12 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
       if (detail::packetAvx2()) {
         for (std::uint32_t i = from, end = from + few; i < end;) {
           std::uint32_t held[4];
-          const double* record[4];
           int n = 0;
           for (; i < end && n < 4; ++i)
             if (best.admit(order[i])) held[n++] = order[i];
-          if (n == 0) continue;
-          for (int k = 0; k < 4; ++k) record[k] = recordOf(held[std::min(k, n - 1)]);
-          filter.end = std::min(1.0, best.toi);
-          const unsigned keep = detail::recordFilterAvx2(record, filter) & ((1u << n) - 1u);
-          for (int k = 0; k < n; ++k)
-            if (keep & (1u << k)) testRecord(held[k], a, d, R, best);
+          if (n > 0)
+            filterFour(held, n, std::min(1.0, best.toi), filter, record,
+                       [&](std::uint32_t t) { testRecord(t, a, d, R, best); });
         }
         continue;
       }
@@ -720,12 +727,7 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
       continue;
     }
     const std::uint32_t left = item.node + 1, right = node.first;
-    // Both children's lines requested before either is read (the right child lies elsewhere in the array).
-    __builtin_prefetch(&nodes[right]);
-    __builtin_prefetch(&slabs[left]);
-    __builtin_prefetch(&slabs[right]);
-    __builtin_prefetch(reinterpret_cast<const char*>(&slabs[left]) + 63);
-    __builtin_prefetch(reinterpret_cast<const char*>(&slabs[right]) + 63);
+    prefetchChildren(nodes.data(), slabs, left, right);
     const double tl = best.below(slabs[left])
                           ? kNever
                           : enterNode(nodes[left], slabs[left], a, d, inv, grow, best.reach, best.toi),

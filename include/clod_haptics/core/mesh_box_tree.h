@@ -29,6 +29,21 @@ struct NodeSlab {
 };
 
 /**
+ * \brief What a walk down a box tree reads next at an inner node whose children are left (the node's successor) and
+ * right: requested together (the right child's box lies elsewhere in the array, each slab is 64 bytes and may
+ * straddle two lines), so that a walk into a region it has not touched lately waits for them at once rather than one
+ * after another. slabs may be null (a tree without them).
+ */
+inline void prefetchChildren(const BoxNode* nodes, const NodeSlab* slabs, std::uint32_t left, std::uint32_t right) {
+  __builtin_prefetch(&nodes[right]);
+  if (slabs == nullptr) return;
+  __builtin_prefetch(&slabs[left]);
+  __builtin_prefetch(&slabs[right]);
+  __builtin_prefetch(reinterpret_cast<const char*>(&slabs[left]) + 63);
+  __builtin_prefetch(reinterpret_cast<const char*>(&slabs[right]) + 63);
+}
+
+/**
  * \brief One box tree over all the triangles of a mesh (leaves of 4, boxes padded by meshBoxTreePad), in the
  * mesh's local frame: what the grid level walks beyond its radius and for the deep search, and what the swept
  * query walks for radii its grid does not serve. Built once per mesh and shared (TriangleMesh::boxTree), so a mesh
