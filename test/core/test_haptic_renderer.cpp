@@ -541,6 +541,25 @@ TEST(HapticRenderer, FrictionConeStaticThenDynamic) {
   EXPECT_NEAR(pen.force.back().x(), 0.0, 1e-12);
 }
 
+// A device creeping along a surface slower than the proxy's still distance a tick: the proxy is never left more than
+// that distance behind, so the force errs by at most the stiffness times it (0.2 um, 80 uN here), and it follows.
+TEST(HapticRenderer, ACreepingDeviceLeavesTheProxyAtMostTheStillDistanceBehind) {
+  const SweptScene scene = sceneOf(box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.0)));
+  HapticRenderer renderer(stylus());
+  ProxyTick tick;
+  const double depth = 0.001, still = HapticRenderer::kStillRadii * kRadius, step = 0.3 * still;
+  for (const Vec3& d : path(Vec3(0, 0, 0.01), Vec3(0, 0, kRadius - depth), 0.05)) renderer.update(scene, d, kDt, tick);
+  ASSERT_NEAR(tick.proxy.z(), kRadius, 1e-9);
+  for (int i = 1; i <= 1500; ++i) {
+    const Vec3 device(i * step, 0.0, kRadius - depth);
+    renderer.update(scene, device, kDt, tick);
+    ASSERT_GE(tick.proxy.z(), kRadius * (1.0 - 1e-9)) << "tick " << i;
+    ASSERT_LE(std::abs(tick.proxy.x() - device.x()), still * (1.0 + 1e-6)) << "tick " << i;
+    ASSERT_LE(std::abs(tick.force.x()), kStiffness * still * (1.0 + 1e-6)) << "tick " << i;
+  }
+  EXPECT_GT(tick.proxy.x(), 1500 * step - still);  // it followed the whole 0.09 mm
+}
+
 // ---- The proxy never ends a tick inside a shared mesh, over long random device paths (brute force).
 
 TEST(HapticRenderer, ProxyNeverInsideSharedMeshesOnRandomPaths) {
