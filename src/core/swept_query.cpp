@@ -467,16 +467,24 @@ void SweptSphereQuery::sweep(const Vec3& a, const Vec3& b, double r, SweptContac
 
 namespace {
 
+// 1 / d per axis, 0 where d is 0 (clipToBox does not read it there): computed once per sweep.
+Vec3 reciprocals(const Vec3& d) {
+  Vec3 inv = Vec3::Zero();
+  for (int k = 0; k < 3; ++k)
+    if (d[k] != 0.0) inv[k] = 1.0 / d[k];
+  return inv;
+}
+
 // Narrows [c0, c1] to the times at which a + t d lies in the box [lo, hi]; false when none. Each slab's times are
-// widened by widen for their rounding.
-bool clipToBox(const Vec3& lo, const Vec3& hi, const Vec3& a, const Vec3& d, double widen, double& c0, double& c1) {
+// widened by widen for their rounding. inv: reciprocals(d).
+bool clipToBox(const Vec3& lo, const Vec3& hi, const Vec3& a, const Vec3& d, const Vec3& inv, double widen, double& c0,
+               double& c1) {
   for (int k = 0; k < 3; ++k) {
     if (d[k] == 0.0) {
       if (a[k] < lo[k] || a[k] > hi[k]) return false;
       continue;
     }
-    const double inv = 1.0 / d[k];
-    double enter = (lo[k] - a[k]) * inv, leave = (hi[k] - a[k]) * inv;
+    double enter = (lo[k] - a[k]) * inv[k], leave = (hi[k] - a[k]) * inv[k];
     if (enter > leave) std::swap(enter, leave);
     c0 = std::max(c0, enter - widen);
     c1 = std::min(c1, leave + widen);
@@ -502,6 +510,7 @@ void SweptSphereQuery::sweepGrid(const Vec3& a, const Vec3& d, double R, Best& b
   const int pieces = std::max(1, static_cast<int>(std::ceil(d.norm() / h)));
   // Covers the rounding of the pieces' ends and of the cell coordinates.
   const double pad = 1e-9 * h + 1e-12 * magnitudeOf(a, a + d);
+  const Vec3 inv = reciprocals(d);
   for (int k = 0; k < pieces; ++k) {
     const double t0 = static_cast<double>(k) / pieces, t1 = static_cast<double>(k + 1) / pieces;
     const Vec3 p0 = a + t0 * d, p1 = k + 1 == pieces ? Vec3(a + d) : Vec3(a + t1 * d);
@@ -529,7 +538,7 @@ void SweptSphereQuery::sweepGrid(const Vec3& a, const Vec3& d, double R, Best& b
           if (ref == nullptr) continue;
           // The cell's box grown by pad (the pieces' rounding), its times by 1e-12 (the slabs' own).
           const Vec3 centre = grid.centreOf(key), half = Vec3::Constant(0.5 * h + pad);
-          if (!clipToBox(centre - half, centre + half, a, d, 1e-12, c0, c1)) continue;
+          if (!clipToBox(centre - half, centre + half, a, d, inv, 1e-12, c0, c1)) continue;
           int i = count++;
           for (; i > 0 && parts[i - 1].c0 > c0; --i) parts[i] = parts[i - 1];
           parts[i] = {key, ref, c0, c1};
@@ -642,23 +651,13 @@ namespace {
 // squared distance of two boxes adds the gaps on each axis) or from the node's slab and ball (planeBoundMisses on
 // that part, with reach: R and its rounding slack). Both drop the nodes beside a sphere sliding over a surface,
 // which the grown box keeps for R on either side of its path.
-// inv: 1 / d per axis (unused where d is 0), computed once per sweep (clipToBox's divisions, the same times).
+// inv: reciprocals(d).
 inline double enterNode(const BoxNode& n, const NodeSlab& slab, const Vec3& a, const Vec3& d, const Vec3& inv, double R,
                         double reach, double tMax) {
   double t0 = 0.0, t1 = 1.0;
   const Vec3 lo(n.lo[0], n.lo[1], n.lo[2]), hi(n.hi[0], n.hi[1], n.hi[2]);
-  for (int k = 0; k < 3; ++k) {
-    const double l = lo[k] - R, h = hi[k] + R;
-    if (d[k] == 0.0) {
-      if (a[k] < l || a[k] > h) return kNever;
-      continue;
-    }
-    double enter = (l - a[k]) * inv[k], leave = (h - a[k]) * inv[k];
-    if (enter > leave) std::swap(enter, leave);
-    t0 = std::max(t0, enter);
-    t1 = std::min(t1, leave);
-  }
-  if (!(t0 <= t1)) return kNever;
+  const Vec3 grow = Vec3::Constant(R);
+  if (!clipToBox(lo - grow, hi + grow, a, d, inv, 0.0, t0, t1)) return kNever;
   t1 = std::min(t1, tMax);
   if (t1 < t0) return t0;  // after the best time: the caller skips it
   const Vec3 p0 = a + t0 * d, p1 = a + t1 * d;
@@ -677,9 +676,7 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
   const NodeSlab* slabs = tree_->slabs.data();  // one per node (meshBoxTreeOf)
   // The grown box holds every centre within R of the node's triangles; its rounding is covered by a margin.
   const double grow = R * (1.0 + 1e-12) + 1e-12 * magnitudeOf(a, a + d);
-  Vec3 inv = Vec3::Zero();
-  for (int k = 0; k < 3; ++k)
-    if (d[k] != 0.0) inv[k] = 1.0 / d[k];
+  const Vec3 inv = reciprocals(d);
   struct Item {
     std::uint32_t node;
     double t;
