@@ -154,11 +154,6 @@ TEST(HapticRenderer, ProxyStaysOnTheEntrySideOfAThinPlate) {
   }
 }
 
-// Plates the tests above were not written for: 60 mm square, 0.1 to 4 mm thick (or a sheet of no thickness, open),
-// tessellated in 1 to 30 squares a side (regular or jittered, so some triangles are long and thin), turned and moved
-// at random; the device goes back and forth through them 40 times at 0.01 to 4 m/s, with random friction, damping and
-// force shading. The proxy never ends a tick inside (brute force) and never changes side of the plate's middle while
-// over its inside (a pop-through; round the rim it may).
 // Any rotation, shifted by up to 5 cm.
 Eigen::Isometry3d randomPose(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -183,6 +178,11 @@ ProxyParameters randomStylus(std::mt19937_64& rng) {
   return params;
 }
 
+// Plates the tests above were not written for: 60 mm square, 0.1 to 4 mm thick (or a sheet of no thickness, open),
+// tessellated in 1 to 30 squares a side (regular or jittered, so some triangles are long and thin), turned and moved
+// at random; the device goes back and forth through them 40 times at 0.01 to 4 m/s, with random friction, damping and
+// force shading. The proxy never ends a tick inside (brute force) and never changes side of the plate's middle while
+// over its inside (a pop-through; round the rim it may).
 TEST(HapticRenderer, ProxyNeverCrossesRandomThinPlatesOrSheets) {
   std::mt19937_64 rng(2026);
   std::uniform_real_distribution<double> u(0.0, 1.0);
