@@ -103,6 +103,19 @@ TEST(SweptSphereTriangle, MatchesTheSampledDistanceOnRandomSweeps) {
     EXPECT_LE(toi, ref + 1e-12) << "case " << i;
     EXPECT_GE(toi, ref - 1e-7) << "case " << i;
     EXPECT_GE(distanceAt(a + toi * d, v0, v1, v2), r * (1.0 - 1e-9)) << "case " << i;
+    // Cut at a best time so far (a search's tMax, as the tests that end early use it): the same contact when it
+    // comes by then, none when it comes clearly after.
+    const double tMax = ref * std::pow(2.0, u(rng));  // half to twice the contact's time
+    double cut = -1.0;
+    const bool hitBefore = sweptSphereTriangle(a, d, sweptRadiusMargin(r, 2.0), v0, v1, v2, cut, start, tMax);
+    if (tMax >= ref + 1e-7) {
+      EXPECT_TRUE(hitBefore) << "case " << i << ": tMax " << tMax << " cut a contact at " << ref;
+      if (hitBefore) {
+        EXPECT_EQ(cut, toi) << "case " << i;
+      }
+    } else if (tMax < ref - 1e-7) {
+      EXPECT_FALSE(hitBefore) << "case " << i << ": a contact at " << cut << " after tMax " << tMax;
+    }
   }
   EXPECT_GT(hits, 500);
   EXPECT_GT(misses, 1000);
