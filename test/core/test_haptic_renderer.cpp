@@ -342,6 +342,130 @@ TEST(HapticRenderer, ProxyNeverCutsThroughRandomLegsOrWedges) {
   EXPECT_GT(touching, ticks / 4) << "the pushes must press on the parts";
 }
 
+// More thin geometry no other test has, posed at random: a comb of 0.4 mm fins 2.1 mm apart (narrower than the
+// stylus) on a base, each fin a closed box overlapping it; a closed box shell 0.4 mm thick with its cavity; two 0.3 mm
+// plates crossing (closed boxes through each other: not a manifold); a torus of 0.5 mm tube; a 0.3 mm disc whose
+// faces are fans of long thin triangles. The device goes 15 mm into a random surface point along its inward normal
+// tilted up to 50 degrees and back out, at 0.05 to 4 m/s. The chords between consecutive proxies never cut the
+// mesh and no tick ends inside it (brute force), as above.
+TEST(HapticRenderer, ProxyNeverCutsThroughCombsShellsOrCrossedPlates) {
+  std::mt19937_64 rng(20261129);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  struct Shape {
+    std::vector<Vec3> v;
+    std::vector<Triangle> t;
+    // A closed box, outward windings (inward: a cavity).
+    void box(const Vec3& lo, const Vec3& hi, bool inward = false) {
+      const std::uint32_t b = static_cast<std::uint32_t>(v.size());
+      for (int i = 0; i < 8; ++i)
+        v.emplace_back(i & 1 ? hi.x() : lo.x(), i & 2 ? hi.y() : lo.y(), i & 4 ? hi.z() : lo.z());
+      const Triangle faces[12] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                                  {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+      for (const Triangle& f : faces)
+        t.push_back(inward ? Triangle{b + f[0], b + f[2], b + f[1]} : Triangle{b + f[0], b + f[1], b + f[2]});
+    }
+  };
+  std::vector<std::pair<const char*, Shape>> shapes;
+  {
+    Shape comb;
+    comb.box(Vec3(-0.015, -0.005, -0.004), Vec3(0.015, 0.005, 0.0));
+    for (int i = 0; i < 6; ++i) {
+      const double x = -0.00625 + 0.0025 * i;
+      comb.box(Vec3(x - 0.0002, -0.005, -0.001), Vec3(x + 0.0002, 0.005, 0.012));
+    }
+    shapes.push_back({"comb", comb});
+    Shape shell;
+    shell.box(Vec3::Constant(-0.015), Vec3::Constant(0.015));
+    shell.box(Vec3::Constant(-0.0146), Vec3::Constant(0.0146), true);
+    shapes.push_back({"box shell", shell});
+    Shape crossed;
+    crossed.box(Vec3(-0.015, -0.00015, -0.015), Vec3(0.015, 0.00015, 0.015));
+    crossed.box(Vec3(-0.00015, -0.015, -0.015), Vec3(0.00015, 0.015, 0.015));
+    shapes.push_back({"crossed plates", crossed});
+    Shape torus;  // 10 mm from the axis, a tube of 0.5 mm, 48 x 8 quads
+    const int nu = 48, nv = 8;
+    for (int i = 0; i < nu; ++i)
+      for (int j = 0; j < nv; ++j) {
+        const double a = 2.0 * M_PI * i / nu, b = 2.0 * M_PI * j / nv;
+        torus.v.emplace_back((0.01 + 0.0005 * std::cos(b)) * std::cos(a), (0.01 + 0.0005 * std::cos(b)) * std::sin(a),
+                             0.0005 * std::sin(b));
+      }
+    for (int i = 0; i < nu; ++i)
+      for (int j = 0; j < nv; ++j) {
+        auto at = [&](int a, int b) { return static_cast<std::uint32_t>((a % nu) * nv + b % nv); };
+        torus.t.push_back({at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+        torus.t.push_back({at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+      }
+    shapes.push_back({"torus", torus});
+    Shape disc;  // radius 20 mm, 0.3 mm thick, 48 sides: fans of triangles 20 mm long and 2.6 mm wide at the rim
+    const int n = 48;
+    for (int k = 0; k < n; ++k)
+      for (double z : {-0.00015, 0.00015})
+        disc.v.emplace_back(0.02 * std::cos(2.0 * M_PI * k / n), 0.02 * std::sin(2.0 * M_PI * k / n), z);
+    disc.v.emplace_back(0.0, 0.0, -0.00015);
+    disc.v.emplace_back(0.0, 0.0, 0.00015);
+    const std::uint32_t bottom = 2 * n, top = 2 * n + 1;
+    for (std::uint32_t k = 0; k < static_cast<std::uint32_t>(n); ++k) {
+      const std::uint32_t k1 = (k + 1) % n;
+      disc.t.push_back({top, 2 * k + 1, 2 * k1 + 1});
+      disc.t.push_back({bottom, 2 * k1, 2 * k});
+      disc.t.push_back({2 * k, 2 * k1, 2 * k1 + 1});
+      disc.t.push_back({2 * k, 2 * k1 + 1, 2 * k + 1});
+    }
+    shapes.push_back({"disc", disc});
+  }
+  std::size_t ticks = 0, touching = 0;
+  for (auto& [name, shape] : shapes) {
+    const Eigen::Isometry3d pose = randomPose(rng);
+    for (Vec3& x : shape.v) x = pose * x;
+    const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(shape.v, shape.t, name));
+    const SweptScene scene = sceneOf(mesh, kRadius);
+    std::vector<double> area;  // cumulative, to draw surface points uniformly
+    for (std::size_t k = 0; k < mesh->size(); ++k)
+      area.push_back((area.empty() ? 0.0 : area.back()) +
+                     (mesh->vertex(k, 1) - mesh->vertex(k, 0)).cross(mesh->vertex(k, 2) - mesh->vertex(k, 0)).norm());
+    std::size_t inside = 0, cuts = 0;
+    for (int push = 0, tries = 0; push < 12 && tries < 400; ++tries) {
+      const std::size_t k =
+          static_cast<std::size_t>(std::lower_bound(area.begin(), area.end(), u(rng) * area.back()) - area.begin());
+      double a = u(rng), b = u(rng);
+      if (a + b > 1.0) {
+        a = 1.0 - a;
+        b = 1.0 - b;
+      }
+      const Vec3 &v0 = mesh->vertex(k, 0), &v1 = mesh->vertex(k, 1), &v2 = mesh->vertex(k, 2);
+      const Vec3 at = v0 + a * (v1 - v0) + b * (v2 - v0), normal = (v1 - v0).cross(v2 - v0).normalized();
+      const Vec3 tilt(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+      const Vec3 motion = (-normal + 1.2 * tilt).normalized();
+      if (motion.dot(normal) > -std::cos(50.0 * M_PI / 180.0)) continue;
+      const Vec3 start = at - 0.015 * motion;
+      if (bruteForceQuery(*mesh, start, kRadius * 1.01).contact) continue;  // from free space
+      ++push;
+      const double speed = 0.05 * std::pow(80.0, u(rng));  // 0.05 to 4 m/s
+      std::vector<Vec3> devicePath = path(start, at + 0.015 * motion, speed);
+      const std::vector<Vec3> back = path(at + 0.015 * motion, start, speed);
+      devicePath.insert(devicePath.end(), back.begin() + 1, back.end());
+      HapticRenderer renderer(randomStylus(rng));
+      renderer.reset(start);
+      Vec3 last = start;
+      ProxyTick tick;
+      for (const Vec3& device : devicePath) {
+        renderer.update(scene, device, kDt, tick);
+        ++ticks;
+        touching += tick.contact;
+        if (bruteForceQuery(*mesh, tick.proxy, kRadius * (1.0 - 1e-6)).contact && ++inside <= 2)
+          ADD_FAILURE() << name << ": the proxy ends a tick inside at " << tick.proxy.transpose();
+        if (bruteForceSweep(*mesh, last, tick.proxy, 1e-9).hit && ++cuts <= 2)
+          ADD_FAILURE() << name << ": the proxy jumped through it at " << speed << " m/s";
+        last = tick.proxy;
+      }
+    }
+    EXPECT_EQ(inside, 0u) << name;
+    EXPECT_EQ(cuts, 0u) << name;
+  }
+  EXPECT_GT(touching, ticks / 4) << "the pushes must press on the shapes";
+}
+
 TEST(HapticRenderer, PenaltyModelPopsThroughTheThinPlate) {  // the criterion above can fail
   const auto mesh = box(Vec3(-0.05, -0.05, -kPlate / 2), Vec3(0.05, 0.05, kPlate / 2));
   for (double speed : {0.05, 0.5, 2.0}) {
