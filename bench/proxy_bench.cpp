@@ -30,6 +30,7 @@ constexpr double kR = 0.002;          // pointer radius (the shipped launch file
 constexpr double kStiffness = 400.0;  // N/m (the shipped launch file)
 constexpr double kDt = 1e-3;          // 1 kHz
 constexpr double kSharedSize = 0.15;  // shared meshes scaled from the unit cube to 15 cm
+constexpr double kSmallSize = 0.04;   // and to 4 cm (a tooth, a figurine): triangles smaller than the stylus
 constexpr double kSpeeds[] = {0.05, 0.5, 2.0};
 
 }  // namespace
@@ -109,15 +110,19 @@ std::vector<std::unique_ptr<Model>> thinModels() {
   return out;
 }
 
-std::unique_ptr<Model> sharedModel(const std::string& path) {
+std::unique_ptr<Model> sharedModel(const std::string& path, double size) {
   MeshLoadOptions options;
   options.normalize = true;
   const TriangleMesh unit = loadMesh(path, options);
   std::vector<Vec3> v;
-  for (const Vec3& x : unit.vertices) v.push_back(unit.toModel(x) * kSharedSize);
-  const std::string name = std::filesystem::path(path).filename().string();
+  for (const Vec3& x : unit.vertices) v.push_back(unit.toModel(x) * size);
+  std::string name = std::filesystem::path(path).filename().string();
+  if (std::lround(size * 1e3) != std::lround(kSharedSize * 1e3))
+    name += "@" + std::to_string(static_cast<int>(std::lround(size * 1e3))) + "mm";
   return prepare(name, "shared", 0.0, makeMesh(std::move(v), unit.triangles, name));
 }
+
+std::unique_ptr<Model> sharedModel(const std::string& path) { return sharedModel(path, kSharedSize); }
 
 namespace {
 
@@ -381,13 +386,14 @@ void proxySection(const std::vector<std::string>& sharedPaths, const std::string
   const std::string loadBefore = loadAverage();
   const auto started = std::chrono::steady_clock::now();
   std::vector<std::unique_ptr<Model>> models = thinModels();
-  for (const std::string& path : sharedPaths) {
-    try {
-      models.push_back(sharedModel(path));
-    } catch (const std::exception& e) {
-      std::cout << "  proxy: skip " << path << ": " << e.what() << "\n";
+  for (double size : {kSharedSize, kSmallSize})
+    for (const std::string& path : sharedPaths) {
+      try {
+        models.push_back(sharedModel(path, size));
+      } catch (const std::exception& e) {
+        std::cout << "  proxy: skip " << path << ": " << e.what() << "\n";
+      }
     }
-  }
   popThroughs(models, runs, thin, md);
   md << "\n## Cost per tick (ns)\n\nEach push from a reset renderer (the jump between pushes is not timed), timed "
         "twice: `first` finds the region out of the caches, `repeat` runs the same push again.\n\n| model | triangles "

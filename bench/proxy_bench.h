@@ -26,6 +26,11 @@ struct Model {
 std::unique_ptr<Model> prepare(std::string name, std::string kind, double sizeMm, clod_haptics::TriangleMesh mesh);
 /** \brief A shared mesh file, normalised and scaled to 15 cm. */
 std::unique_ptr<Model> sharedModel(const std::string& path);
+/**
+ * \brief The same scaled to size (m) instead, named "file@Nmm" (the section also runs every shared mesh at 4 cm, where
+ * its triangles are smaller than the stylus: a tooth or a figurine at the scale of the hand).
+ */
+std::unique_ptr<Model> sharedModel(const std::string& path, double size);
 /** \brief The section's ellipsoid of semi-axes 15, 12 and 9 mm with edges of edge r (0.25 and 0.1 in the section). */
 std::unique_ptr<Model> fineEllipsoid(double edge);
 /** \brief The generated thin parts of the section: plates, cylinders, the antler and the two fine ellipsoids. */

@@ -1,15 +1,15 @@
 // proxy_ticks: the cost of the shipped proxy's ticks on one mesh, for comparing two builds (python3 bench/ab.py).
 //
-//   proxy_ticks MESH [--runs N] [--bag BAG] [--only-trajectory]
+//   proxy_ticks MESH [--runs N] [--bag BAG] [--only-trajectory] [--size MM]
 //
-// MESH: a mesh file, scaled to 15 cm, or ellipsoid-edge-E, the section's ellipsoid with edges of E r (0.1 and 0.25
-// there): the bench's proxy section's models (proxy_bench.h), its stylus (r = 2 mm, 400 N/m, 1 kHz) and its paths:
-// N pushes (default 40, as the section's cost table) at 0.5 and 2 m/s, and the recorded Geomagic trajectory placed
-// over the model from where the stylus is first clear of it (when BAG is given). Each path is run
-// twice from a reset renderer: `1st` finds its region out of the caches, `rep` runs it again. Prints one line per path
-// set and pass: name, pass, ticks, mean, p50, p90, p99, max (ns), and the top 1% of ticks' sweeps and triangles tested.
-// No result files: the numbers drift with this machine's load, so compare builds by alternating them (python3
-// bench/ab.py).
+// MESH: a mesh file, scaled to 15 cm (or to MM millimetres: the section also runs them at 40), or ellipsoid-edge-E, the
+// section's ellipsoid with edges of E r (0.1 and 0.25 there): the bench's proxy section's models (proxy_bench.h), its
+// stylus (r = 2 mm, 400 N/m, 1 kHz) and its paths: N pushes (default 40, as the section's cost table) at 0.5 and 2 m/s,
+// and the recorded Geomagic trajectory placed over the model from where the stylus is first clear of it (when BAG is
+// given). Each path is run twice from a reset renderer: `1st` finds its region out of the caches, `rep` runs it again.
+// Prints one line per path set and pass: name, pass, ticks, mean, p50, p90, p99, max (ns), and the top 1% of ticks'
+// sweeps and triangles tested. No result files: the numbers drift with this machine's load, so compare builds by
+// alternating them (python3 bench/ab.py).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -56,12 +56,13 @@ void report(const char* name, const char* pass, std::vector<float> t, const std:
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: proxy_ticks MESH [--runs N] [--bag BAG] [--only-trajectory]\n");
+    std::fprintf(stderr, "usage: proxy_ticks MESH [--runs N] [--bag BAG] [--only-trajectory] [--size MM]\n");
     return 2;
   }
   int runs = 40;
   std::string bag;
   bool onlyTrajectory = false;
+  double sizeMm = 150.0;
   for (int i = 2; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--runs") && i + 1 < argc) {
       char* end = nullptr;
@@ -73,6 +74,13 @@ int main(int argc, char** argv) {
       runs = static_cast<int>(n);
     } else if (!std::strcmp(argv[i], "--bag") && i + 1 < argc) {
       bag = argv[++i];
+    } else if (!std::strcmp(argv[i], "--size") && i + 1 < argc) {
+      char* end = nullptr;
+      sizeMm = std::strtod(argv[++i], &end);
+      if (*end != '\0' || !(sizeMm > 0.0) || !std::isfinite(sizeMm)) {
+        std::fprintf(stderr, "proxy_ticks: --size takes a positive number of millimetres, got '%s'\n", argv[i]);
+        return 2;
+      }
     } else if (!std::strcmp(argv[i], "--only-trajectory")) {
       onlyTrajectory = true;
     } else {
@@ -92,7 +100,7 @@ int main(int argc, char** argv) {
         throw std::invalid_argument("the edge (in r) must be a positive number, as in ellipsoid-edge-0.1");
       model = clod_bench::fineEllipsoid(edge);
     } else {
-      model = clod_bench::sharedModel(source);
+      model = clod_bench::sharedModel(source, sizeMm * 1e-3);
     }
   } catch (const std::exception& e) {  // a missing or broken mesh, an edge the ellipsoid cannot take
     std::fprintf(stderr, "proxy_ticks: %s: %s\n", source.c_str(), e.what());
