@@ -9,6 +9,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "clod_haptics/core/eigen_abi.h"  // a program built with other vector flags fails to link, not at run time
+
 namespace clod_haptics {
 
 using Vec3 = Eigen::Vector3d;
