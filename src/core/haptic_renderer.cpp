@@ -123,12 +123,16 @@ Vec3 HapticRenderer::solve(const SweptScene& scene, const Vec3& from, const Vec3
   Vec3 p = from, goal = target;
   SceneSweptContact hit;
   // A move shorter than still (kStillRadii, and at least a few skins: the proxy wedged between its planes) is not
-  // made: staying is as good, never enters anything, and saves a sweep that would scan the cell for nothing
-  // (refined_elephant's recording: p99 5.35 -> 4.19 to 4.25 us against 16 skins alone, bench/README.md).
+  // made while the proxy rests on something (a plane of this solve, or a constraint of the last tick): staying is as
+  // good, never enters anything, and saves a sweep that would scan the cell for nothing (refined_elephant's
+  // recording: p99 5.35 -> 4.19 to 4.25 us against 16 skins alone, bench/README.md). A free proxy makes every move
+  // longer than a few skins, so it follows a device creeping through free space exactly: no force without contact.
   const double still = std::max(16.0 * skin, kStillRadii * r);
+  const double freeStill = 16.0 * skin;
   double lift = 0.0;  // see below
   for (int i = 0; i < kIterations; ++i) {
-    if ((goal - p).squaredNorm() <= still * still) break;
+    const double stay = planes.count > 0 || heldCount_ > 0 ? still : freeStill;
+    if ((goal - p).squaredNorm() <= stay * stay) break;
     // The last tick's constraints first: one that still blocks at once answers the sweep without a search (a proxy
     // wedged in a crease meets the same two or three triangles every tick, each of them a search's worst case). The
     // proxy rests a skin above its planes, so "at once" is before it has moved still: it then stays where it is,

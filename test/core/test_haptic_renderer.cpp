@@ -684,6 +684,35 @@ TEST(HapticRenderer, ACreepingDeviceLeavesTheProxyAtMostTheStillDistanceBehind) 
   EXPECT_GT(tick.proxy.x(), 1500 * step - still);  // it followed the whole 0.09 mm
 }
 
+// In free space the still distance does not apply: a device creeping by less than it (a hand at rest, the turn of a
+// stroke) drags the proxy along exactly, so no force comes without contact; the same after the proxy has touched,
+// from the tick the stylus is clear. (With the still distance everywhere the proxy stayed up to 0.2 um behind: 80 uN
+// in free space, which the bridge's servo test caught.)
+TEST(HapticRenderer, AFreeProxyFollowsACreepingDeviceExactly) {
+  const SweptScene scene = sceneOf(box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.0)));
+  HapticRenderer renderer(stylus());
+  ProxyTick tick;
+  const double step = 0.3 * HapticRenderer::kStillRadii * kRadius;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  auto creep = [&](Vec3 device, int ticks, const char* what) {
+    for (int i = 0; i < ticks; ++i) {
+      device += Vec3(u(rng), u(rng), u(rng)) * step;
+      renderer.update(scene, device, kDt, tick);
+      ASSERT_FALSE(tick.contact) << what << ", tick " << i;
+      ASSERT_EQ(tick.proxy, device) << what << ", tick " << i;
+      ASSERT_EQ(tick.force, Vec3::Zero()) << what << ", tick " << i;
+    }
+  };
+  renderer.reset(Vec3(0.0, 0.0, 0.02));
+  creep(Vec3(0.0, 0.0, 0.02), 200, "never touched");
+  // Press 1 mm in, pull out to 1 mm clear of the surface in one tick, then creep there.
+  for (const Vec3& d : path(Vec3(0, 0, 0.01), Vec3(0, 0, kRadius - 0.001), 0.05)) renderer.update(scene, d, kDt, tick);
+  ASSERT_TRUE(tick.contact);
+  renderer.update(scene, Vec3(0.0, 0.0, kRadius + 0.001), kDt, tick);
+  creep(tick.device, 200, "after a touch");
+}
+
 // ---- The proxy never ends a tick inside a shared mesh, over long random device paths (brute force).
 
 TEST(HapticRenderer, ProxyNeverInsideSharedMeshesOnRandomPaths) {

@@ -76,10 +76,11 @@ class HapticRenderer {
   const Vec3& proxy() const { return proxy_; }
 
   /**
-   * \brief A move of the proxy shorter than this many radii is not made, and a constraint that blocks the move
-   * within it blocks it at once (the proxy stays, which enters nothing): the proxy lags its goal by at most this
-   * much (0.2 um for r = 2 mm, 80 uN at 400 N/m; CHAI3D's finger proxy stops within 1e-5 m of its goal). Smaller,
-   * a proxy resting on a finely tessellated surface spent a whole cell scan on moves of a few nanometres.
+   * \brief While the proxy rests on something (a constraint of this tick or the last), a move shorter than this
+   * many radii is not made, and a constraint that blocks the move within it blocks it at once (the proxy stays,
+   * which enters nothing): the proxy lags its goal by at most this much (0.2 um for r = 2 mm, 80 uN at 400 N/m;
+   * CHAI3D's finger proxy stops within 1e-5 m of its goal). Smaller, a proxy resting on a finely tessellated surface
+   * spent a whole cell scan on moves of a few nanometres. A free proxy follows the device exactly.
    */
   static constexpr double kStillRadii = 1e-4;
 
