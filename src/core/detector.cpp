@@ -182,7 +182,6 @@ std::uint64_t nextDetectorId() {
   return counter.fetch_add(1, std::memory_order_relaxed) + 1;
 }
 
-/** Per triangle, a ball around it (centroid, radius reaching its vertices plus pad), then its three corners. */
 /**
  * Nearest child first through a box tree from root, calling leaf(item) for every item of each leaf whose box lies
  * within sqrt(d2) of p (and its slab, when slabs are given per node); d2 may shrink during the walk (a closer
@@ -218,6 +217,7 @@ inline void walkBoxTree(const BoxNode* nodes, std::uint32_t root, const std::uin
   }
 }
 
+/** Per triangle, a ball around it (centroid, radius reaching its vertices plus pad), then its three corners. */
 std::vector<double> triangleRecords(const TriangleMesh& m, double pad) {
   std::vector<double> records(kRecord * m.size());
   for (std::size_t t = 0; t < m.size(); ++t) {
