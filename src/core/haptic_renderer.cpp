@@ -220,9 +220,28 @@ void HapticRenderer::update(const SweptScene& scene, const Vec3& device, double 
   if (!started_) reset(device);
   Planes planes;
   Vec3 p = solve(scene, proxy_, device, planes, out);
-  out.planes = static_cast<std::uint32_t>(planes.count);
-  heldCount_ = planes.count;
-  std::copy(planes.by, planes.by + planes.count, held_);
+  // Stayed on the constraints it rested on (the device moved less than the still distance, in or off them: no sweep
+  // ran): the proxy still touches them, and the tick says so with the last contact, so that no force (at most the
+  // still distance times the stiffness) comes without contact. They stay held.
+  const bool resting = !out.contact && out.sweeps == 0 && heldCount_ > 0 && restTriangle_ >= 0;
+  if (resting) {
+    out.contact = true;
+    out.point = restPoint_;
+    out.normal = restNormal_;
+    out.object = restObject_;
+    out.triangle = restTriangle_;
+    out.planes = static_cast<std::uint32_t>(heldCount_);
+  } else {
+    out.planes = static_cast<std::uint32_t>(planes.count);
+    heldCount_ = planes.count;
+    std::copy(planes.by, planes.by + planes.count, held_);
+    if (out.contact) {
+      restPoint_ = out.point;
+      restNormal_ = out.normal;
+      restObject_ = out.object;
+      restTriangle_ = out.triangle;
+    }
+  }
   if (out.contact && parameters_.muStatic > 0.0) {
     Vec3 normal = Vec3::Zero();
     for (int i = 0; i < planes.count; ++i) normal += planes.n[i];

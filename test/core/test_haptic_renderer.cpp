@@ -689,7 +689,8 @@ TEST(HapticRenderer, ACreepingDeviceLeavesTheProxyAtMostTheStillDistanceBehind) 
 // In free space the still distance does not apply: a device creeping by less than it (a hand at rest, the turn of a
 // stroke) drags the proxy along exactly, so no force comes without contact; the same after the proxy has touched,
 // from the tick the stylus is clear. (With the still distance everywhere the proxy stayed up to 0.2 um behind: 80 uN
-// in free space, which the bridge's servo test caught.)
+// in free space, which the bridge's servo test caught.) A device that moves less than it off the surface the proxy
+// rests on or into it leaves the proxy there: that tick is in contact, with the last tick's contact.
 TEST(HapticRenderer, AFreeProxyFollowsACreepingDeviceExactly) {
   const SweptScene scene = sceneOf(box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.0)));
   HapticRenderer renderer(stylus());
@@ -711,6 +712,17 @@ TEST(HapticRenderer, AFreeProxyFollowsACreepingDeviceExactly) {
   // Press 1 mm in, pull out to 1 mm clear of the surface in one tick, then creep there.
   for (const Vec3& d : path(Vec3(0, 0, 0.01), Vec3(0, 0, kRadius - 0.001), 0.05)) renderer.update(scene, d, kDt, tick);
   ASSERT_TRUE(tick.contact);
+  const ProxyTick pressed = tick;
+  for (const double off : {1.0, -1.0, 2.0}) {  // off the surface (the proxy's centre + step), into it, off again
+    const Vec3 device = pressed.proxy + Vec3(0.0, 0.0, off * step);
+    renderer.update(scene, device, kDt, tick);
+    EXPECT_EQ(tick.proxy, pressed.proxy) << off;
+    EXPECT_TRUE(tick.contact) << off;
+    EXPECT_EQ(tick.triangle, pressed.triangle) << off;
+    EXPECT_EQ(tick.point, pressed.point) << off;
+    EXPECT_EQ(tick.normal, pressed.normal) << off;
+    EXPECT_EQ(tick.planes, pressed.planes) << off;
+  }
   renderer.update(scene, Vec3(0.0, 0.0, kRadius + 0.001), kDt, tick);
   creep(tick.device, 200, "after a touch");
 }

@@ -80,7 +80,8 @@ class HapticRenderer {
    * many radii is not made, and a constraint that blocks the move within it blocks it at once (the proxy stays,
    * which enters nothing): the proxy lags its goal by at most this much (0.2 um for r = 2 mm, 80 uN at 400 N/m;
    * CHAI3D's finger proxy stops within 1e-5 m of its goal). Smaller, a proxy resting on a finely tessellated surface
-   * spent a whole cell scan on moves of a few nanometres. A free proxy follows the device exactly.
+   * spent a whole cell scan on moves of a few nanometres. A free proxy follows the device exactly; one that stays on
+   * its constraints reports the tick in contact with them (no force without contact).
    */
   static constexpr double kStillRadii = 1e-4;
 
@@ -102,6 +103,10 @@ class HapticRenderer {
   } hint_;  // the last contact: tested first by the next sweep
   Hint held_[3];       // the contacts that made the last tick's constraint planes
   int heldCount_ = 0;  // how many of held_ are in use
+  // The first contact of the last tick that met one: a proxy that stays on its constraints (the still distance)
+  // reports it again.
+  Vec3 restPoint_ = Vec3::Zero(), restNormal_ = Vec3::Zero();
+  std::int32_t restObject_ = -1, restTriangle_ = -1;
 };
 
 }  // namespace clod_haptics
