@@ -32,12 +32,21 @@ constexpr double kRadius = 0.002;     // the shipped launch file's pointer
 constexpr double kStiffness = 400.0;  // and its stiffness
 constexpr double kDt = 1e-3;          // 1 kHz
 
+// Appends a closed box to v and t, outward windings (inward: a cavity).
+void appendBox(std::vector<Vec3>& v, std::vector<Triangle>& t, const Vec3& lo, const Vec3& hi, bool inward = false) {
+  const std::uint32_t b = static_cast<std::uint32_t>(v.size());
+  for (int i = 0; i < 8; ++i) v.emplace_back(i & 1 ? hi.x() : lo.x(), i & 2 ? hi.y() : lo.y(), i & 4 ? hi.z() : lo.z());
+  const Triangle faces[12] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                              {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+  for (const Triangle& f : faces)
+    t.push_back(inward ? Triangle{b + f[0], b + f[2], b + f[1]} : Triangle{b + f[0], b + f[1], b + f[2]});
+}
+
 // A closed box, outward windings.
 std::shared_ptr<const TriangleMesh> box(const Vec3& lo, const Vec3& hi) {
   std::vector<Vec3> v;
-  for (int i = 0; i < 8; ++i) v.emplace_back(i & 1 ? hi.x() : lo.x(), i & 2 ? hi.y() : lo.y(), i & 4 ? hi.z() : lo.z());
-  const std::vector<Triangle> t = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                                   {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+  std::vector<Triangle> t;
+  appendBox(v, t, lo, hi);
   return std::make_shared<const TriangleMesh>(makeMesh(v, t, "box"));
 }
 
@@ -367,16 +376,7 @@ TEST(HapticRenderer, ProxyNeverCutsThroughCombsShellsOrCrossedPlates) {
   struct Shape {
     std::vector<Vec3> v;
     std::vector<Triangle> t;
-    // A closed box, outward windings (inward: a cavity).
-    void box(const Vec3& lo, const Vec3& hi, bool inward = false) {
-      const std::uint32_t b = static_cast<std::uint32_t>(v.size());
-      for (int i = 0; i < 8; ++i)
-        v.emplace_back(i & 1 ? hi.x() : lo.x(), i & 2 ? hi.y() : lo.y(), i & 4 ? hi.z() : lo.z());
-      const Triangle faces[12] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                                  {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-      for (const Triangle& f : faces)
-        t.push_back(inward ? Triangle{b + f[0], b + f[2], b + f[1]} : Triangle{b + f[0], b + f[1], b + f[2]});
-    }
+    void box(const Vec3& lo, const Vec3& hi, bool inward = false) { appendBox(v, t, lo, hi, inward); }
   };
   std::vector<std::pair<const char*, Shape>> shapes;
   {
