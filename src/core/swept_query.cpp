@@ -9,6 +9,7 @@
 #include "clod_haptics/core/mesh_box_tree.h"
 #include "simd/cell_scan_avx2.h"
 #include "simd/dispatch.h"
+#include "simd/node_filter_avx2.h"
 #include "simd/record_filter_avx2.h"
 
 namespace clod_haptics {
@@ -351,6 +352,79 @@ SweptContact bruteForceSweep(const TriangleMesh& mesh, const Vec3& a, const Vec3
   return out;
 }
 
+/**
+ * The box tree four children to a node. Each node of tree_ that the walk enters (its root, and every inner node with
+ * more than kSmallSubtree triangles) is a node here whose lanes are its children, or for a child that is itself such
+ * a node, that child's two children: the walk tests up to four nodes of tree_ in one AVX2 call where sweepTree tests
+ * two, and skips the level between. A lane that is a leaf or a small subtree holds its run of the order array.
+ */
+struct SweptSphereQuery::WideTree {
+  struct alignas(64) Node {
+    detail::NodeLanes lanes;
+    std::uint32_t child[4];  // few > 0: its first triangle in the order array; else its node here
+    std::uint32_t few[4];    // its triangles when a leaf or small subtree, else 0
+    std::uint32_t count;     // lanes used
+  };
+  std::vector<Node> nodes;  // root at 0
+
+  /** Null when tree is not one meshBoxTreeOf builds (slabs for every node, children after their parent). */
+  static std::shared_ptr<const WideTree> build(const MeshBoxTree& tree, const std::vector<std::uint8_t>& small,
+                                               const std::vector<std::uint32_t>& first) {
+    const std::vector<BoxNode>& bn = tree.nodes;
+    if (bn.empty() || tree.slabs.size() != bn.size()) return nullptr;
+    auto terminal = [&](std::uint32_t b) { return small[b] > 0 || bn[b].count > 0; };
+    auto wellFormed = [&](std::uint32_t b) { return bn[b].first > b && bn[b].first < bn.size() && b + 1 < bn.size(); };
+    auto wide = std::make_shared<WideTree>();
+    wide->nodes.emplace_back();
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> todo{{0u, 0u}};  // (node here, node of tree)
+    while (!todo.empty()) {
+      const auto [w, b] = todo.back();
+      todo.pop_back();
+      std::uint32_t lane[4];
+      std::uint32_t n = 0;
+      if (terminal(b)) {
+        lane[n++] = b;
+      } else {
+        if (!wellFormed(b)) return nullptr;
+        for (const std::uint32_t c : {b + 1, bn[b].first}) {
+          if (terminal(c)) {
+            lane[n++] = c;
+          } else {
+            if (!wellFormed(c)) return nullptr;
+            lane[n++] = c + 1;
+            lane[n++] = bn[c].first;
+          }
+        }
+      }
+      Node node{};
+      node.count = n;
+      for (std::uint32_t k = 0; k < n; ++k) {
+        const std::uint32_t g = lane[k];
+        const BoxNode& box = bn[g];
+        const NodeSlab& slab = tree.slabs[g];
+        for (int j = 0; j < 3; ++j) {
+          node.lanes.lo[j][k] = box.lo[j];
+          node.lanes.hi[j][k] = box.hi[j];
+          node.lanes.centre[j][k] = slab.centre[j];
+          node.lanes.normal[j][k] = slab.normal[j];
+        }
+        node.lanes.thick[k] = slab.thick;
+        node.lanes.radius[k] = slab.radius;
+        if (terminal(g)) {
+          node.child[k] = first[g];
+          node.few[k] = small[g] > 0 ? small[g] : box.count;
+        } else {
+          node.child[k] = static_cast<std::uint32_t>(wide->nodes.size());
+          wide->nodes.emplace_back();
+          todo.emplace_back(node.child[k], g);
+        }
+      }
+      wide->nodes[w] = node;
+    }
+    return wide;
+  }
+};
+
 SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
                                    std::shared_ptr<const ClodDetector> detector)
     : mesh_(std::move(mesh)), detector_(std::move(detector)) {
@@ -395,6 +469,9 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
     if (small_[left] > 0 && small_[right] > 0 && first[left] + small_[left] == first[right] && count <= kSmallSubtree)
       small_[i] = static_cast<std::uint8_t>(count);
   }
+#if defined(CLOD_PACKET_AVX2)
+  wide_ = WideTree::build(*tree_, small_, first);  // walked where the CPU runs AVX2 (sweep)
+#endif
 }
 
 const double* SweptSphereQuery::recordOf(std::uint32_t t) const noexcept { return records_[t].v; }
@@ -459,6 +536,8 @@ void SweptSphereQuery::sweep(const Vec3& a, const Vec3& b, double r, SweptContac
     if (grid_ != nullptr && r <= grid_->radius() && d.norm() <= 4096.0 * grid_->cellSize() && !crowdedAt(la) &&
         !crowdedAt(la + d))
       sweepGrid(la, d, R, best);
+    else if (wide_ && detail::packetAvx2())
+      sweepWide(la, d, R, best);
     else
       sweepTree(la, d, R, best);
   }
@@ -746,6 +825,77 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
       stack[top++] = {right, tr};
     }
   }
+}
+
+void SweptSphereQuery::sweepWide(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept {
+#if defined(CLOD_PACKET_AVX2)
+  const std::vector<WideTree::Node>& nodes = wide_->nodes;
+  const std::vector<std::uint32_t>& order = tree_->order;
+  const Vec3 inv = reciprocals(d);
+  detail::NodeFilterSweep s{};
+  for (int k = 0; k < 3; ++k) {
+    s.a[k] = a[k];
+    s.d[k] = d[k];
+    s.inv[k] = inv[k];
+  }
+  // As sweepTree: the grown box holds every centre within R of the node's triangles, its rounding covered.
+  s.grow = R * (1.0 + 1e-12) + 1e-12 * magnitudeOf(a, a + d);
+  s.reach = best.reach;
+  detail::RecordFilterSweep filter{{a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, 1.0, best.invdd, R, best.reach};
+  const auto record = [this](std::uint32_t t) { return recordOf(t); };
+  struct Item {
+    std::uint32_t child, few;
+    double t;
+  };
+  Item stack[3 * kMaxBoxTreeDepth + 8];  // a node pops one item and pushes at most four
+  int top = 0;
+  stack[top++] = {0, 0, 0.0};
+  while (top > 0) {
+    const Item item = stack[--top];
+    if (item.t > best.toi) continue;  // every contact inside comes later
+    if (item.few > 0) {
+      const std::uint32_t from = item.child, end = from + item.few;
+      for (std::uint32_t i = from; i < end; ++i) __builtin_prefetch(recordOf(order[i]));
+      for (std::uint32_t i = from; i < end;) {
+        std::uint32_t held[4];
+        int n = 0;
+        for (; i < end && n < 4; ++i)
+          if (best.admit(order[i])) held[n++] = order[i];
+        if (n > 0)
+          filterFour(held, n, std::min(1.0, best.toi), filter, record,
+                     [&](std::uint32_t t) { testRecord(t, a, d, R, best); });
+      }
+      continue;
+    }
+    const WideTree::Node& node = nodes[item.child];
+    s.tMax = best.toi;
+    s.plane = best.planeReady();
+    if (s.plane) {
+      for (int k = 0; k < 3; ++k) s.n[k] = best.n[k];
+      s.offset = best.offset;
+      s.clearance = best.clearance();
+    }
+    double enter[4];
+    unsigned keep = detail::nodeFilterAvx2(node.lanes, node.count, s, enter);
+    int lane[4], n = 0;
+    for (; keep != 0; keep &= keep - 1) {
+      const int k = __builtin_ctz(keep);
+      int j = n++;  // farthest first: the nearest ends on top of the stack
+      for (; j > 0 && enter[lane[j - 1]] < enter[k]; --j) lane[j] = lane[j - 1];
+      lane[j] = k;
+    }
+    for (int j = 0; j < n; ++j) {
+      const int k = lane[j];
+      if (node.few[k] == 0) {
+        const char* line = reinterpret_cast<const char*>(&nodes[node.child[k]]);
+        for (std::size_t b = 0; b < sizeof(WideTree::Node); b += 64) __builtin_prefetch(line + b);
+      }
+      stack[top++] = {node.child[k], node.few[k], enter[k]};
+    }
+  }
+#else
+  sweepTree(a, d, R, best);
+#endif
 }
 
 }  // namespace clod_haptics

@@ -129,6 +129,7 @@ class SweptSphereQuery {
   void sweepCell(const CellGrid::CellRef& ref, std::uint64_t key, const Vec3& p0, const Vec3& p1, const Vec3& a,
                  const Vec3& d, double R, double t0, double t1, Best& best) const noexcept;
   void sweepTree(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
+  void sweepWide(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
   /** Whether the grid's cell at a local point lists more than ClodDetector::kTreeAboveEntries triangles. */
   bool crowdedAt(const Vec3& local) const noexcept;
 
@@ -152,6 +153,12 @@ class SweptSphereQuery {
   // Per node of tree_: the number of triangles below it when it is a leaf or a subtree of at most kSmallSubtree
   // triangles lying together in the order array (from its leftmost leaf's first), else 0.
   std::vector<std::uint8_t> small_;
+  /**
+   * The same tree four children to a node (each inner node of tree_ whose children are not small subtrees takes its
+   * grandchildren), tested four at a time in AVX2 (sweepWide): null without AVX2, where sweepTree walks tree_.
+   */
+  struct WideTree;
+  std::shared_ptr<const WideTree> wide_;
 };
 
 }  // namespace clod_haptics
