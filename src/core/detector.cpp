@@ -18,6 +18,7 @@
 #include "simd/closest_point_avx2.h"
 #include "simd/dispatch.h"
 #include "vector_bytes.h"
+#include "wide_box_tree.h"
 
 namespace clod_haptics {
 
@@ -127,6 +128,9 @@ constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
 
 constexpr std::size_t kRecord = 13;  // doubles per triangle record: ball (4), corners (9)
 
+// The four-wide tree's lanes end at subtrees of at most this many triangles (WideBoxTree): the binary walk's leaves.
+constexpr std::uint32_t kWideTreeLeaves = kMeshBoxTreeLeafSize;
+
 // Above this many triangles the grid scan tests its candidates a group behind, their lines prefetched (TriangleBatch):
 // in-contact probes in random order, interleaved runs, median of 6: refined_elephant (88,928) mean -12 to -21%, p99
 // -21 to -26%; mannequin-devil (25,888) -8% and -12%; head (2,918, in the caches) +16% and +12%, so not there.
@@ -216,6 +220,52 @@ inline void walkBoxTree(const BoxNode* nodes, std::uint32_t root, const std::uin
     }
   }
 }
+
+#if defined(CLOD_PACKET_AVX2)
+/**
+ * walkBoxTree through the tree four children to a node, four nodes a test in AVX2 (nodeNearAvx2: the same box and
+ * slab distances): leaf(item) for every item of each leaf or small subtree whose box and slab lie within sqrt(d2) of
+ * p, nearest first; d2 may shrink during the walk. Call only where packetAvx2() is true.
+ */
+template <class Leaf>
+inline void walkWideBoxTree(const WideBoxTree& tree, const std::uint32_t* order, const Vec3& p, const double& d2,
+                            Leaf&& leaf) {
+  struct Item {
+    std::uint32_t child, few;
+    double near;
+  };
+  Item stack[3 * kMaxBoxTreeDepth + 8];  // a node pops one item and pushes at most four
+  int top = 0;
+  stack[top++] = {0, 0, 0.0};
+  const double q[3] = {p.x(), p.y(), p.z()};
+  while (top > 0) {
+    const Item item = stack[--top];
+    if (item.near > d2) continue;
+    if (item.few > 0) {
+      for (std::uint32_t i = item.child; i < item.child + item.few; ++i) leaf(order[i]);
+      continue;
+    }
+    const WideBoxTree::Node& node = tree.nodes[item.child];
+    double near[4];
+    unsigned keep = detail::nodeNearAvx2(node.lanes, node.count, q, d2, near);
+    int lane[4], n = 0;
+    for (; keep != 0; keep &= keep - 1) {
+      const int k = __builtin_ctz(keep);
+      int j = n++;  // farthest first: the nearest ends on top of the stack
+      for (; j > 0 && near[lane[j - 1]] < near[k]; --j) lane[j] = lane[j - 1];
+      lane[j] = k;
+    }
+    for (int j = 0; j < n; ++j) {
+      const int k = lane[j];
+      if (node.few[k] == 0) {
+        const char* line = reinterpret_cast<const char*>(&tree.nodes[node.child[k]]);
+        for (std::size_t b = 0; b < sizeof(WideBoxTree::Node); b += 64) __builtin_prefetch(line + b);
+      }
+      stack[top++] = {node.child[k], node.few[k], near[k]};
+    }
+  }
+}
+#endif
 
 /** Per triangle, a ball around it (centroid, radius reaching its vertices plus pad), then its three corners. */
 std::vector<double> triangleRecords(const TriangleMesh& m, double pad) {
@@ -342,6 +392,12 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
         throw InvalidParameter("ClodDetector: the grid source gave a grid of radius " + std::to_string(grid_.radius()) +
                                ", expected " + std::to_string(radius));
     }
+#if defined(CLOD_PACKET_AVX2)
+    // The four-wide tree where crowded cells send every query in them through the tree (triangles far smaller than
+    // the radius); elsewhere the walk is rare (pointers beyond the radius, the deep search) and its bytes not spent.
+    if (meshTree_ && grid_.largestCell() > kTreeAboveEntries)
+      meshWide_ = WideBoxTree::build(*meshTree_, kWideTreeLeaves);
+#endif
   }
 }
 
@@ -385,7 +441,8 @@ std::size_t ClodDetector::bytes() const noexcept {
   using detail::bytesOf;
   return sizeof(*this) + grid_.bytes() + bytesOf(sphereData_) + bytesOf(triangles_) + trees_.bytes() +
          bytesOf(triangleNodes_) + bytesOf(triangleOrder_) + bytesOf(triangleRoot_) + bytesOf(sphereOfTriangle_) +
-         (meshTree_ ? bytesOf(meshTree_->nodes) + bytesOf(meshTree_->order) + bytesOf(meshTree_->slabs) : 0);
+         (meshTree_ ? bytesOf(meshTree_->nodes) + bytesOf(meshTree_->order) + bytesOf(meshTree_->slabs) : 0) +
+         (meshWide_ ? meshWide_->bytes() : 0);
 }
 
 inline void ClodDetector::testTriangle(std::uint32_t tri, std::uint32_t sphere, const Vec3& p, DetectionMode mode,
@@ -428,6 +485,15 @@ void ClodDetector::preciseTree(std::uint32_t sphere, const Vec3& p, DetectionMod
 void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best, std::uint32_t skip) const {
   TriangleBatch batch(batchSize(mode),
                       [&](const std::uint32_t* t, unsigned count) { testGridBatch(t, count, p, mode, best); });
+#if defined(CLOD_PACKET_AVX2)
+  if (meshWide_ && detail::packetAvx2()) {
+    walkWideBoxTree(*meshWide_, meshTree_->order.data(), p, best.d2, [&](std::uint32_t t) {
+      if (t != skip) batch.add(t);
+    });
+    batch.finish();
+    return;
+  }
+#endif
   walkBoxTree(
       meshTree_->nodes.data(), 0, meshTree_->order.data(), p, best.d2,
       [&](std::uint32_t t) {

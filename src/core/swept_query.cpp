@@ -11,6 +11,7 @@
 #include "simd/dispatch.h"
 #include "simd/node_filter_avx2.h"
 #include "simd/record_filter_avx2.h"
+#include "wide_box_tree.h"
 
 namespace clod_haptics {
 namespace {
@@ -352,79 +353,6 @@ SweptContact bruteForceSweep(const TriangleMesh& mesh, const Vec3& a, const Vec3
   return out;
 }
 
-/**
- * The box tree four children to a node. Each node of tree_ that the walk enters (its root, and every inner node with
- * more than kSmallSubtree triangles) is a node here whose lanes are its children, or for a child that is itself such
- * a node, that child's two children: the walk tests up to four nodes of tree_ in one AVX2 call where sweepTree tests
- * two, and skips the level between. A lane that is a leaf or a small subtree holds its run of the order array.
- */
-struct SweptSphereQuery::WideTree {
-  struct alignas(64) Node {
-    detail::NodeLanes lanes;
-    std::uint32_t child[4];  // few > 0: its first triangle in the order array; else its node here
-    std::uint32_t few[4];    // its triangles when a leaf or small subtree, else 0
-    std::uint32_t count;     // lanes used
-  };
-  std::vector<Node> nodes;  // root at 0
-
-  /** Null when tree is not one meshBoxTreeOf builds (slabs for every node, children after their parent). */
-  static std::shared_ptr<const WideTree> build(const MeshBoxTree& tree, const std::vector<std::uint8_t>& small,
-                                               const std::vector<std::uint32_t>& first) {
-    const std::vector<BoxNode>& bn = tree.nodes;
-    if (bn.empty() || tree.slabs.size() != bn.size()) return nullptr;
-    auto terminal = [&](std::uint32_t b) { return small[b] > 0 || bn[b].count > 0; };
-    auto wellFormed = [&](std::uint32_t b) { return bn[b].first > b && bn[b].first < bn.size() && b + 1 < bn.size(); };
-    auto wide = std::make_shared<WideTree>();
-    wide->nodes.emplace_back();
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> todo{{0u, 0u}};  // (node here, node of tree)
-    while (!todo.empty()) {
-      const auto [w, b] = todo.back();
-      todo.pop_back();
-      std::uint32_t lane[4];
-      std::uint32_t n = 0;
-      if (terminal(b)) {
-        lane[n++] = b;
-      } else {
-        if (!wellFormed(b)) return nullptr;
-        for (const std::uint32_t c : {b + 1, bn[b].first}) {
-          if (terminal(c)) {
-            lane[n++] = c;
-          } else {
-            if (!wellFormed(c)) return nullptr;
-            lane[n++] = c + 1;
-            lane[n++] = bn[c].first;
-          }
-        }
-      }
-      Node node{};
-      node.count = n;
-      for (std::uint32_t k = 0; k < n; ++k) {
-        const std::uint32_t g = lane[k];
-        const BoxNode& box = bn[g];
-        const NodeSlab& slab = tree.slabs[g];
-        for (int j = 0; j < 3; ++j) {
-          node.lanes.lo[j][k] = box.lo[j];
-          node.lanes.hi[j][k] = box.hi[j];
-          node.lanes.centre[j][k] = slab.centre[j];
-          node.lanes.normal[j][k] = slab.normal[j];
-        }
-        node.lanes.thick[k] = slab.thick;
-        node.lanes.radius[k] = slab.radius;
-        if (terminal(g)) {
-          node.child[k] = first[g];
-          node.few[k] = small[g] > 0 ? small[g] : box.count;
-        } else {
-          node.child[k] = static_cast<std::uint32_t>(wide->nodes.size());
-          wide->nodes.emplace_back();
-          todo.emplace_back(node.child[k], g);
-        }
-      }
-      wide->nodes[w] = node;
-    }
-    return wide;
-  }
-};
-
 SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
                                    std::shared_ptr<const ClodDetector> detector)
     : mesh_(std::move(mesh)), detector_(std::move(detector)) {
@@ -450,27 +378,10 @@ SweptSphereQuery::SweptSphereQuery(std::shared_ptr<const TriangleMesh> mesh,
   }
   // One tree over the mesh, shared: the grid detector's, else the mesh's own when it fits, else built here.
   tree_ = detector_ && detector_->meshTree() ? detector_->meshTree() : meshBoxTreeOf(*mesh_);
-  // The small subtrees, bottom up (a child's index is larger than its parent's): a node's triangles are its
-  // children's, the left ones first in the order array when they follow on.
-  const std::vector<BoxNode>& nodes = tree_->nodes;
-  small_.assign(nodes.size(), 0);
-  std::vector<std::uint32_t> first(nodes.size(), 0);
-  for (std::size_t i = nodes.size(); i-- > 0;) {
-    const BoxNode& n = nodes[i];
-    if (n.count > 0) {
-      first[i] = n.first;
-      small_[i] = n.count <= kSmallSubtree ? static_cast<std::uint8_t>(n.count) : 0;
-      continue;
-    }
-    const std::size_t left = i + 1, right = n.first;
-    if (right >= nodes.size() || right <= i) continue;  // not a tree meshBoxTreeOf builds: no shortcut
-    first[i] = first[left];
-    const std::uint32_t count = static_cast<std::uint32_t>(small_[left]) + small_[right];
-    if (small_[left] > 0 && small_[right] > 0 && first[left] + small_[left] == first[right] && count <= kSmallSubtree)
-      small_[i] = static_cast<std::uint8_t>(count);
-  }
+  std::vector<std::uint32_t> first;
+  smallSubtrees(*tree_, kSmallSubtree, small_, first);
 #if defined(CLOD_PACKET_AVX2)
-  wide_ = WideTree::build(*tree_, small_, first);  // walked where the CPU runs AVX2 (sweep)
+  wide_ = WideBoxTree::build(*tree_, small_, first);  // walked where the CPU runs AVX2 (sweep)
 #endif
 }
 
@@ -829,7 +740,7 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
 
 void SweptSphereQuery::sweepWide(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept {
 #if defined(CLOD_PACKET_AVX2)
-  const std::vector<WideTree::Node>& nodes = wide_->nodes;
+  const std::vector<WideBoxTree::Node>& nodes = wide_->nodes;
   const std::vector<std::uint32_t>& order = tree_->order;
   const Vec3 inv = reciprocals(d);
   detail::NodeFilterSweep s{};
@@ -867,7 +778,7 @@ void SweptSphereQuery::sweepWide(const Vec3& a, const Vec3& d, double R, Best& b
       }
       continue;
     }
-    const WideTree::Node& node = nodes[item.child];
+    const WideBoxTree::Node& node = nodes[item.child];
     s.tMax = best.toi;
     s.plane = best.planeReady();
     if (s.plane) {
@@ -888,7 +799,7 @@ void SweptSphereQuery::sweepWide(const Vec3& a, const Vec3& d, double R, Best& b
       const int k = lane[j];
       if (node.few[k] == 0) {
         const char* line = reinterpret_cast<const char*>(&nodes[node.child[k]]);
-        for (std::size_t b = 0; b < sizeof(WideTree::Node); b += 64) __builtin_prefetch(line + b);
+        for (std::size_t b = 0; b < sizeof(WideBoxTree::Node); b += 64) __builtin_prefetch(line + b);
       }
       stack[top++] = {node.child[k], node.few[k], enter[k]};
     }

@@ -26,6 +26,7 @@
 #include "clod_haptics/core/mesh_loader.h"
 #include "clod_haptics/core/probes.h"
 #include "clod_haptics/core/sphere_set.h"
+#include "simd/dispatch.h"
 #include "test_helpers.h"
 
 namespace {
@@ -78,7 +79,7 @@ std::vector<ContactResult> referenceQueries(const TriangleMesh& mesh, const std:
   clod_test::parallelFor(groups.size(), kThreads, [&](std::size_t b, std::size_t e) {
     for (std::size_t g = b; g < e; ++g) {
       const auto it = cellTriangles.find(groups[g]->first);
-      if (it == cellTriangles.end()) continue;  // no triangle within R of this cell: no contact
+      if (it == cellTriangles.end()) continue;              // no triangle within R of this cell: no contact
       const std::vector<std::uint32_t>& tris = it->second;  // ascending
       std::vector<Vec3> vertices;
       std::vector<Triangle> triangles;
@@ -149,7 +150,7 @@ Counts compareRange(const TriangleMesh& mesh, const ClodDetector& det, const std
   Counts k;
   ContactResult exact, paper, spheres;
   QueryCache cacheExact, cachePaper, cacheSpheres;  // one stream per mode, in probe (Morton) order
-  bool exactInside = false, paperInside = false;     // the streams' previous answers: centre inside
+  bool exactInside = false, paperInside = false;    // the streams' previous answers: centre inside
   std::size_t deepChecks = 0;
   const Eigen::AlignedBox3d bounds = mesh.bounds();
   const double tolAbs = 1e-12 * mesh.diagonal();
@@ -185,15 +186,15 @@ Counts compareRange(const TriangleMesh& mesh, const ClodDetector& det, const std
         known = false;
       }
       if (known && (exact.contact != signedRef.contact ||
-                    (exact.contact && (std::abs(exact.distance - signedRef.distance) > tol ||
-                                       exact.inside != signedRef.inside)))) {
+                    (exact.contact &&
+                     (std::abs(exact.distance - signedRef.distance) > tol || exact.inside != signedRef.inside)))) {
         ++k.exactMismatch;
         fail("exact probe " + std::to_string(i) + " (deep, followed): contact " + std::to_string(exact.contact) +
              " vs " + std::to_string(signedRef.contact) + ", distance " + std::to_string(exact.distance) + " vs " +
              std::to_string(signedRef.distance));
       }
-    } else if (exact.contact != ref || (ref && (std::abs(exact.distance - bf[i].distance) > tol ||
-                                                exact.inside != bf[i].inside))) {
+    } else if (exact.contact != ref ||
+               (ref && (std::abs(exact.distance - bf[i].distance) > tol || exact.inside != bf[i].inside))) {
       ++k.exactMismatch;
       fail("exact probe " + std::to_string(i) + ": contact " + std::to_string(exact.contact) + " vs " +
            std::to_string(ref) + ", distance " + std::to_string(exact.distance) + " vs " +
@@ -308,14 +309,15 @@ TEST_P(DetectorVsBruteForce, HundredThousandProbes) {
       EXPECT_LE(k.paperMissRounding, k.probes / 10000) << "rounding-only misses should be rare";
       EXPECT_EQ(k.spheresMiss, 0u);
       EXPECT_GT(k.contacts, k.probes / 50) << "the probe set must exercise contacts";
-      std::printf("[ INFO     ] %-22s d=%.2f r=%.3f %-9s%-6s: %zu spheres, %zu probes, %zu contacts, paper misses %zu "
-                  "(edge/vertex closest point; %zu more on an edge within rounding), %.1f s\n",
-                  GetParam().c_str(), cfg.d, r, fastName, cfg.cache ? " cache" : "", set->size(),
-                  k.probes, k.contacts, k.paperMissEdge, k.paperMissRounding, seconds(configStart));
+      std::printf(
+          "[ INFO     ] %-22s d=%.2f r=%.3f %-9s%-6s: %zu spheres, %zu probes, %zu contacts, paper misses %zu "
+          "(edge/vertex closest point; %zu more on an edge within rounding), %.1f s\n",
+          GetParam().c_str(), cfg.d, r, fastName, cfg.cache ? " cache" : "", set->size(), k.probes, k.contacts,
+          k.paperMissEdge, k.paperMissRounding, seconds(configStart));
     }
   }
-  std::printf("[ INFO     ] %s: %zu triangles, reference %.1f s on %u threads, total %.1f s\n",
-              GetParam().c_str(), mesh->size(), bfSeconds, kThreads, seconds(start));
+  std::printf("[ INFO     ] %s: %zu triangles, reference %.1f s on %u threads, total %.1f s\n", GetParam().c_str(),
+              mesh->size(), bfSeconds, kThreads, seconds(start));
 }
 
 TEST_P(DetectorVsBruteForce, ReferenceEqualsFullBruteForce) {
@@ -395,7 +397,8 @@ TEST_P(DetectorVsBruteForce, SpheresModeEqualsEverySphereOverlappingThePointer) 
           if (ok && e.contact) {
             const double gotGap = (probes[i] - set->centres[got.sphere]).norm() - set->radii[got.sphere];
             ok = got.sphere == e.sphere || std::abs(gotGap - e.gap) <= tol;
-            ok = ok && std::abs(got.distance - std::max(0.0, e.gap)) <= tol && std::abs(got.depth - (r - got.distance)) <= tol;
+            ok = ok && std::abs(got.distance - std::max(0.0, e.gap)) <= tol &&
+                 std::abs(got.depth - (r - got.distance)) <= tol;
           }
           if (!ok && wrong++ < 5)
             ADD_FAILURE() << "probe " << i << ": contact " << got.contact << " sphere " << got.sphere << " vs "
@@ -422,7 +425,7 @@ INSTANTIATE_TEST_SUITE_P(SharedMeshes, DetectorVsBruteForce,
 
 TEST(DetectorVsBruteForceList, CoversEverySharedMesh) {
   // The parameter list above must name every mesh of the shared directory.
-  const std::vector<std::string> known{"degtri_sliding.off", "elephant.off",         "head.off",
+  const std::vector<std::string> known{"degtri_sliding.off",  "elephant.off",         "head.off",
                                        "mannequin-devil.off", "mesh_with_border.off", "refined_elephant.off"};
   const auto meshes = clod_test::sharedMeshes();
   ASSERT_FALSE(meshes.empty());
@@ -469,9 +472,9 @@ TEST(ClodDetector, QueryAllocatesNothing) {
 // Regression (fuzz/fuzz_mesh_load, minimised): two triangles of a mutated STL cube. The Grid fast
 // level missed every contact near the vertex (3, 3, 0) for r up to 1e-3; Hierarchy and Flat did not.
 TEST(ClodDetector, GridRegressionTwoTriangles) {
-  const auto mesh = std::make_shared<const TriangleMesh>(
-      makeMesh({Vec3(3, 3, 2), Vec3(3, 3, 0), Vec3(0, 0, 0), Vec3(3.0000009536743164, 2, 3), Vec3(3, 4, 5), Vec3(3, 2, 5)},
-               {{0, 1, 2}, {3, 4, 5}}, "fuzz-two-triangles"));
+  const auto mesh = std::make_shared<const TriangleMesh>(makeMesh(
+      {Vec3(3, 3, 2), Vec3(3, 3, 0), Vec3(0, 0, 0), Vec3(3.0000009536743164, 2, 3), Vec3(3, 4, 5), Vec3(3, 2, 5)},
+      {{0, 1, 2}, {3, 4, 5}}, "fuzz-two-triangles"));
   const ClodBuilder builder(mesh);
   std::mt19937_64 rng(1);
   std::normal_distribution<double> g(0.0, 1.0);
@@ -510,26 +513,32 @@ TEST(ClodDetector, CrowdedCellsAnswerAsBruteForce) {
   std::vector<Vec3> probes = nearSurfaceProbes(*mesh, 1500, r, 21);
   sortMorton(probes);
   std::size_t crowded = 0, contacts = 0;
-  QueryCache cache;
-  for (const Vec3& p : probes) {
-    const CellGrid::CellRef* ref = grid.find(grid.keyOf(mesh->toLocal(p)));
-    crowded += ref != nullptr && grid.cell(*ref).count > ClodDetector::kTreeAboveEntries;
-    const ContactResult ref0 = bruteForceQuery(*mesh, p, r);
-    contacts += ref0.contact;
-    ContactResult got, cached;
-    det.query(p, r, DetectionMode::Exact, got);
-    det.query(p, r, DetectionMode::Exact, cached, &cache);
-    for (const ContactResult* o : {&got, &cached}) {
-      ASSERT_EQ(o->contact, ref0.contact) << p.transpose();
-      if (!ref0.contact) continue;
-      ASSERT_EQ(o->distance, ref0.distance) << p.transpose();
-      ASSERT_EQ(o->triangle, ref0.triangle) << p.transpose();
-      ASSERT_EQ(o->point, ref0.point) << p.transpose();
-      ASSERT_EQ(o->inside, ref0.inside) << p.transpose();
+  // The tree walked four nodes a test in AVX2 (WideBoxTree), and as a CPU without AVX2 walks it.
+  for (const bool avx2 : {true, false}) {
+    SCOPED_TRACE(avx2 ? "AVX2" : "no AVX2");
+    detail::usePacketAvx2(avx2);
+    QueryCache cache;
+    for (const Vec3& p : probes) {
+      const CellGrid::CellRef* ref = grid.find(grid.keyOf(mesh->toLocal(p)));
+      crowded += ref != nullptr && grid.cell(*ref).count > ClodDetector::kTreeAboveEntries;
+      const ContactResult ref0 = bruteForceQuery(*mesh, p, r);
+      contacts += ref0.contact;
+      ContactResult got, cached;
+      det.query(p, r, DetectionMode::Exact, got);
+      det.query(p, r, DetectionMode::Exact, cached, &cache);
+      for (const ContactResult* o : {&got, &cached}) {
+        ASSERT_EQ(o->contact, ref0.contact) << p.transpose();
+        if (!ref0.contact) continue;
+        ASSERT_EQ(o->distance, ref0.distance) << p.transpose();
+        ASSERT_EQ(o->triangle, ref0.triangle) << p.transpose();
+        ASSERT_EQ(o->point, ref0.point) << p.transpose();
+        ASSERT_EQ(o->inside, ref0.inside) << p.transpose();
+      }
     }
   }
-  EXPECT_GT(crowded, probes.size() / 2) << "the sheet must crowd the cells beyond kTreeAboveEntries";
-  EXPECT_GT(contacts, probes.size() / 2);
+  detail::usePacketAvx2(true);
+  EXPECT_GT(crowded, probes.size()) << "the sheet must crowd the cells beyond kTreeAboveEntries";
+  EXPECT_GT(contacts, probes.size());
 }
 
 // The soundness of a stream's neighbourhood (QueryCache::nearTriangle), checked over its cell's whole list with
@@ -692,8 +701,8 @@ TEST(ClodDetector, ANeighbourhoodHoldsTheTriangleBeyondTheNearestOne) {
 TEST(ClodDetector, AFullNeighbourhoodHoldsOnlyWhatItsReachCovers) {
   const double r = 1.0, h = 0.9;
   // The plate: 30 x 30 squares of 0.2 on [-3, 3]^2 (the height field's square scaled by 3).
-  const TriangleMesh plate =
-      clod_test::heightField(30, [](double, double) { return 0.0; }, 3.0 * Eigen::Matrix3d::Identity(), Vec3::Zero());
+  const TriangleMesh plate = clod_test::heightField(
+      30, [](double, double) { return 0.0; }, 3.0 * Eigen::Matrix3d::Identity(), Vec3::Zero());
   std::vector<Vec3> v;
   for (const Vec3& x : plate.vertices) v.push_back(plate.toModel(x));
   std::vector<Triangle> t = plate.triangles;
@@ -839,7 +848,8 @@ TEST(ClodDetector, ACacheNeverReadsAFreedDetectorReusedAtItsAddress) {
   // Levels of both meshes at several distances: other sphere lists, other grid contents.
   std::vector<std::pair<int, std::shared_ptr<const ClodSphereSet>>> levels;
   for (double d : {0.0, 0.03, 0.06, 0.01})
-    for (int m = 0; m < 2; ++m) levels.emplace_back(m, std::make_shared<const ClodSphereSet>(ClodBuilder(meshes[m]).build(d)));
+    for (int m = 0; m < 2; ++m)
+      levels.emplace_back(m, std::make_shared<const ClodSphereSet>(ClodBuilder(meshes[m]).build(d)));
   // Within r of the surface: every answer is the bounded query's (no deep-penetration follow-up).
   auto probes = nearSurfaceProbes(*torus, 300, 0.0045, 11);
   sortMorton(probes);
@@ -853,8 +863,8 @@ TEST(ClodDetector, ACacheNeverReadsAFreedDetectorReusedAtItsAddress) {
   const void* previous = nullptr;
   for (int cycle = 0; cycle < 60; ++cycle) {
     const int which = levels[cycle % levels.size()].first;
-    auto detector =
-        std::make_shared<const ClodDetector>(meshes[which], levels[cycle % levels.size()].second, FastLevel::Grid, 0.02);
+    auto detector = std::make_shared<const ClodDetector>(meshes[which], levels[cycle % levels.size()].second,
+                                                         FastLevel::Grid, 0.02);
     if (detector.get() == previous) ++reused;
     previous = detector.get();
     EXPECT_NE(detector->id(), 0u);
@@ -998,8 +1008,8 @@ TEST(ClodDetector, PushingInKeepsTheForceGrowing) {
   const ClodBuilder builder(mesh);
   const auto set = std::make_shared<const ClodSphereSet>(builder.build(0.1));
   const double r = 0.05;
-  const Push pushes[] = {{"face", Vec3(-5.0, 11.0, 1.5)}, {"edge", Vec3(-5.0, 12.0, 1.5)},
-                         {"vertex", Vec3(-3.0, 12.0, 1.5)}};
+  const Push pushes[] = {
+      {"face", Vec3(-5.0, 11.0, 1.5)}, {"edge", Vec3(-5.0, 12.0, 1.5)}, {"vertex", Vec3(-3.0, 12.0, 1.5)}};
   // The grid serving r (deep search: grid, then hierarchy), the grid below r, the hierarchy, the flat list.
   for (const auto& [fast, gridRadius] : {std::pair{FastLevel::Grid, 0.2}, std::pair{FastLevel::Grid, 0.0},
                                          std::pair{FastLevel::Hierarchy, 0.0}, std::pair{FastLevel::Flat, 0.0}}) {

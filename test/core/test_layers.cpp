@@ -46,6 +46,7 @@ const std::map<std::string, int> kCoreLayer = {
     {"swept_scene", 8},      {"haptic_renderer", 9},
     {"triangle_pieces", 1},  {"bound_tree", 1},
     {"grid_entry_codes", 0}, {"eigen_abi", 0},
+    {"wide_box_tree", 2},
 };
 
 /** Every header and source of the package, by path relative to the root, with the files it includes. */

@@ -16,6 +16,8 @@
 
 namespace clod_haptics {
 
+struct WideBoxTree;  // internal to the core (src/core/wide_box_tree.h)
+
 /** \brief How the fast level finds the spheres the pointer overlaps, and how a hit sphere is searched. */
 enum class FastLevel : std::uint8_t {
   Flat,       ///< the paper: the pointer against every sphere, then every triangle a hit sphere lists
@@ -266,6 +268,9 @@ class ClodDetector {
   // Grid: one tree over all the triangles, for pointers beyond the grid's radius and the deep search (the mesh's
   // own when it brings one that fits, see meshBoxTreeOf).
   std::shared_ptr<const MeshBoxTree> meshTree_;
+  // The same four children to a node (WideBoxTree, internal to the core), walked four nodes a test in AVX2 where the
+  // CPU runs it; null without AVX2.
+  std::shared_ptr<const WideBoxTree> meshWide_;
   const Triangle* triangleIndex_ = nullptr;  // the mesh's arrays (kept alive by mesh_)
   const Vec3* vertices_ = nullptr;
   const Vec3* normals_ = nullptr;

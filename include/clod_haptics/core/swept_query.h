@@ -12,6 +12,8 @@
 
 namespace clod_haptics {
 
+struct WideBoxTree;  // internal to the core (src/core/wide_box_tree.h)
+
 /**
  * \brief The first contact of a sphere of radius r whose centre moves along the segment a -> b (continuous
  * collision detection): what a haptic proxy needs so that it never jumps through a part thinner than its
@@ -154,11 +156,10 @@ class SweptSphereQuery {
   // triangles lying together in the order array (from its leftmost leaf's first), else 0.
   std::vector<std::uint8_t> small_;
   /**
-   * The same tree four children to a node (each inner node of tree_ whose children are not small subtrees takes its
-   * grandchildren), tested four at a time in AVX2 (sweepWide): null without AVX2, where sweepTree walks tree_.
+   * The same tree four children to a node, ending at the small subtrees (WideBoxTree, internal to the core), tested
+   * four at a time in AVX2 (sweepWide): where the CPU does not run AVX2, sweepTree walks tree_. Null without it.
    */
-  struct WideTree;
-  std::shared_ptr<const WideTree> wide_;
+  std::shared_ptr<const WideBoxTree> wide_;
 };
 
 }  // namespace clod_haptics

@@ -97,6 +97,33 @@ __attribute__((target("avx2"))) unsigned nodeFilterAvx2(const NodeLanes& lanes, 
   return bits(keep) & ((1u << count) - 1u);
 }
 
+__attribute__((target("avx2"))) unsigned nodeNearAvx2(const NodeLanes& lanes, unsigned count, const double p[3],
+                                                      double d2, double near[4]) {
+  using namespace avx2;
+  const __m256d zero = _mm256_setzero_pd(), sign = _mm256_set1_pd(-0.0);
+  // The box: per axis the larger of lo - p and p - hi, not below 0 (squaredDistanceToNode).
+  __m256d box = zero, m[3];
+  for (int k = 0; k < 3; ++k) {
+    const __m256d q = _mm256_set1_pd(p[k]);
+    const __m256d g =
+        larger(larger(minus(_mm256_load_pd(lanes.lo[k]), q), minus(q, _mm256_load_pd(lanes.hi[k]))), zero);
+    box = plus(box, times(g, g));
+    m[k] = minus(q, _mm256_load_pd(lanes.centre[k]));
+  }
+  // The slab: across it beyond thick, along its plane beyond radius (slabSquaredDistance; a child without a slab has
+  // a zero normal and infinite thick and radius: 0).
+  const __m256d nx = _mm256_load_pd(lanes.normal[0]), ny = _mm256_load_pd(lanes.normal[1]),
+                nz = _mm256_load_pd(lanes.normal[2]);
+  const __m256d h = dot3(nx, m[0], ny, m[1], nz, m[2]);
+  const __m256d across = larger(minus(_mm256_andnot_pd(sign, h), _mm256_load_pd(lanes.thick)), zero);
+  const __m256d ax = minus(m[0], times(h, nx)), ay = minus(m[1], times(h, ny)), az = minus(m[2], times(h, nz));
+  const __m256d along = larger(minus(_mm256_sqrt_pd(dot3(ax, ax, ay, ay, az, az)), _mm256_load_pd(lanes.radius)), zero);
+  const __m256d slab = plus(times(across, across), times(along, along));
+  const __m256d lower = times(larger(box, slab), _mm256_set1_pd(1.0 - 1e-9));
+  _mm256_storeu_pd(near, lower);
+  return bits(lessEqual(lower, _mm256_set1_pd(d2))) & ((1u << count) - 1u);
+}
+
 #endif
 
 }  // namespace detail

@@ -1,10 +1,10 @@
 #pragma once
-// Internal to the core (not API): the swept query's node test (a box tree node's grown box, the gap from the part of
-// the sweep inside it, its slab and ball, and the hint's plane under the sweep) for the four children of a node of
-// its four-wide tree at once, in AVX2, in double. The box clip is the scalar one's arithmetic lane by lane; the
-// bounds after it are looser than the scalar ones by a relative 1e-9, so a node the scalar walk keeps is kept. Compiled
-// for x86-64 with GCC or Clang (the function carries the target attribute); call it only where packetAvx2()
-// (dispatch.h) is true.
+// Internal to the core (not API): the node tests of the four-wide box tree (WideBoxTree). The swept query's (a box tree
+// node's grown box, the gap from the part of the sweep inside it, its slab and ball, and the hint's plane under the
+// sweep) for the four children of a node of its four-wide tree at once, in AVX2, in double. The box clip is the scalar
+// one's arithmetic lane by lane; the bounds after it are looser than the scalar ones by a relative 1e-9, so a node the
+// scalar walk keeps is kept. Compiled for x86-64 with GCC or Clang (the function carries the target attribute); call it
+// only where packetAvx2() (dispatch.h) is true.
 
 #include "packet_avx2.h"
 
@@ -40,6 +40,15 @@ struct NodeFilterSweep {
  * (SweptSphereQuery::sweepTree's enterNode and Best::below) keeps.
  */
 unsigned nodeFilterAvx2(const NodeLanes& lanes, unsigned count, const NodeFilterSweep& s, double enter[4]);
+
+/**
+ * \brief The point query's node test for four children: bit k set when child k (k < count) may hold a point within
+ * sqrt(d2) of p, by its box's squared distance (squaredDistanceToNode) and its slab's (slabSquaredDistance), the same
+ * arithmetic lane by lane; near[k] the larger of the two lowered by a relative 1e-9, a lower bound of the squared
+ * distance from p to everything below (the walk's order, and its test when the child is popped). Never clears a
+ * child that ClodDetector's binary walk keeps.
+ */
+unsigned nodeNearAvx2(const NodeLanes& lanes, unsigned count, const double p[3], double d2, double near[4]);
 #endif
 
 }  // namespace detail
