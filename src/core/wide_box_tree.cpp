@@ -90,6 +90,7 @@ std::shared_ptr<const WideBoxTree> WideBoxTree::build(const MeshBoxTree& tree, c
     }
     wide->nodes[w] = node;
   }
+  wide->nodes.shrink_to_fit();  // the reserve is a guess: keep no more than the nodes
   return wide;
 }
 

@@ -25,7 +25,8 @@ void smallSubtrees(const MeshBoxTree& tree, std::uint32_t limit, std::vector<std
  * inner node that is not a small subtree) is a node here whose lanes are its children, or for a child that is itself
  * such a node, that child's two children: a walk tests up to four nodes of the binary tree in one call where the
  * binary walk tests two, and skips the level between. A lane that is a leaf or a small subtree holds its run of the
- * order array. Built in O(nodes); 512 bytes a node, about a twelfth as many nodes as triangles.
+ * order array. Built in O(nodes); 512 bytes a node, as many nodes as a sixteenth of the triangles (ending at
+ * subtrees of 8 on a tree with leaves of 4) to a quarter (ending at the leaves).
  */
 struct WideBoxTree {
   struct alignas(64) Node {
