@@ -221,52 +221,6 @@ inline void walkBoxTree(const BoxNode* nodes, std::uint32_t root, const std::uin
   }
 }
 
-#if defined(CLOD_PACKET_AVX2)
-/**
- * walkBoxTree through the tree four children to a node, four nodes a test in AVX2 (nodeNearAvx2: the same box and
- * slab distances): leaf(item) for every item of each leaf or small subtree whose box and slab lie within sqrt(d2) of
- * p, nearest first; d2 may shrink during the walk. Call only where packetAvx2() is true.
- */
-template <class Leaf>
-inline void walkWideBoxTree(const WideBoxTree& tree, const std::uint32_t* order, const Vec3& p, const double& d2,
-                            Leaf&& leaf) {
-  struct Item {
-    std::uint32_t child, few;
-    double near;
-  };
-  Item stack[3 * kMaxBoxTreeDepth + 8];  // a node pops one item and pushes at most four
-  int top = 0;
-  stack[top++] = {0, 0, 0.0};
-  const double q[3] = {p.x(), p.y(), p.z()};
-  while (top > 0) {
-    const Item item = stack[--top];
-    if (item.near > d2) continue;
-    if (item.few > 0) {
-      for (std::uint32_t i = item.child; i < item.child + item.few; ++i) leaf(order[i]);
-      continue;
-    }
-    const WideBoxTree::Node& node = tree.nodes[item.child];
-    double near[4];
-    unsigned keep = detail::nodeNearAvx2(node.lanes, node.count, q, d2, near);
-    int lane[4], n = 0;
-    for (; keep != 0; keep &= keep - 1) {
-      const int k = __builtin_ctz(keep);
-      int j = n++;  // farthest first: the nearest ends on top of the stack
-      for (; j > 0 && near[lane[j - 1]] < near[k]; --j) lane[j] = lane[j - 1];
-      lane[j] = k;
-    }
-    for (int j = 0; j < n; ++j) {
-      const int k = lane[j];
-      if (node.few[k] == 0) {
-        const char* line = reinterpret_cast<const char*>(&tree.nodes[node.child[k]]);
-        for (std::size_t b = 0; b < sizeof(WideBoxTree::Node); b += 64) __builtin_prefetch(line + b);
-      }
-      stack[top++] = {node.child[k], node.few[k], near[k]};
-    }
-  }
-}
-#endif
-
 /** Per triangle, a ball around it (centroid, radius reaching its vertices plus pad), then its three corners. */
 std::vector<double> triangleRecords(const TriangleMesh& m, double pad) {
   std::vector<double> records(kRecord * m.size());
@@ -487,9 +441,17 @@ void ClodDetector::preciseMeshTree(const Vec3& p, DetectionMode mode, Best& best
                       [&](const std::uint32_t* t, unsigned count) { testGridBatch(t, count, p, mode, best); });
 #if defined(CLOD_PACKET_AVX2)
   if (meshWide_ && detail::packetAvx2()) {
-    walkWideBoxTree(*meshWide_, meshTree_->order.data(), p, best.d2, [&](std::uint32_t t) {
-      if (t != skip) batch.add(t);
-    });
+    // walkBoxTree four nodes a test (nodeNearAvx2: the same box and slab distances, nearest first).
+    const double q[3] = {p.x(), p.y(), p.z()};
+    const std::uint32_t* order = meshTree_->order.data();
+    meshWide_->walk([&] { return best.d2; },
+                    [&](const WideBoxTree::Node& node, double* key) {
+                      return detail::nodeNearAvx2(node.lanes, node.count, q, best.d2, key);
+                    },
+                    [&](std::uint32_t first, std::uint32_t few) {
+                      for (std::uint32_t i = first; i < first + few; ++i)
+                        if (order[i] != skip) batch.add(order[i]);
+                    });
     batch.finish();
     return;
   }

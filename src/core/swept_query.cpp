@@ -665,6 +665,32 @@ inline double enterNode(const BoxNode& n, const NodeSlab& slab, const Vec3& a, c
 
 }  // namespace
 
+void SweptSphereQuery::testRun(std::uint32_t from, std::uint32_t few, const Vec3& a, const Vec3& d, double R,
+                               Best& best) const noexcept {
+  const std::vector<std::uint32_t>& order = tree_->order;
+  const std::uint32_t end = from + few;
+  // The records requested together: a walk into a region it has not touched lately waits for each.
+  for (std::uint32_t i = from; i < end; ++i) __builtin_prefetch(recordOf(order[i]));
+#if defined(CLOD_PACKET_AVX2)
+  // Through the records' ball and plane bounds four at a time, as sweepCell's batches.
+  if (detail::packetAvx2()) {
+    detail::RecordFilterSweep filter{{a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, 1.0, best.invdd, R, best.reach};
+    const auto record = [this](std::uint32_t t) { return recordOf(t); };
+    for (std::uint32_t i = from; i < end;) {
+      std::uint32_t held[4];
+      int n = 0;
+      for (; i < end && n < 4; ++i)
+        if (best.admit(order[i])) held[n++] = order[i];
+      if (n > 0)
+        filterFour(held, n, std::min(1.0, best.toi), filter, record,
+                   [&](std::uint32_t t) { testRecord(t, a, d, R, best); });
+    }
+    return;
+  }
+#endif
+  for (std::uint32_t i = from; i < end; ++i) testTriangle(order[i], a, d, R, best);
+}
+
 void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept {
   const std::vector<BoxNode>& nodes = tree_->nodes;
   const std::vector<std::uint32_t>& order = tree_->order;
@@ -679,10 +705,6 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
   };
   Item stack[128];
   int top = 0;
-#if defined(CLOD_PACKET_AVX2)
-  detail::RecordFilterSweep filter{{a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, 1.0, best.invdd, R, best.reach};
-  const auto record = [this](std::uint32_t t) { return recordOf(t); };
-#endif
   const double t = enterNode(nodes[0], slabs[0], a, d, inv, grow, best.reach, best.toi);
   if (t != kNever) stack[top++] = {0, t};
   while (top > 0) {
@@ -694,25 +716,7 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
       // Its triangles lie together in the order array from its leftmost leaf's on (left children follow their parent).
       std::uint32_t leftmost = item.node;
       while (nodes[leftmost].count == 0) ++leftmost;
-      const std::uint32_t from = nodes[leftmost].first;
-      // The records requested together: a walk into a region it has not touched lately waits for each.
-      for (std::uint32_t i = from; i < from + few; ++i) __builtin_prefetch(recordOf(order[i]));
-#if defined(CLOD_PACKET_AVX2)
-      // Its triangles through the records' ball and plane bounds four at a time, as sweepCell's batches.
-      if (detail::packetAvx2()) {
-        for (std::uint32_t i = from, end = from + few; i < end;) {
-          std::uint32_t held[4];
-          int n = 0;
-          for (; i < end && n < 4; ++i)
-            if (best.admit(order[i])) held[n++] = order[i];
-          if (n > 0)
-            filterFour(held, n, std::min(1.0, best.toi), filter, record,
-                       [&](std::uint32_t t) { testRecord(t, a, d, R, best); });
-        }
-        continue;
-      }
-#endif
-      for (std::uint32_t i = from; i < from + few; ++i) testTriangle(order[i], a, d, R, best);
+      testRun(nodes[leftmost].first, few, a, d, R, best);
       continue;
     }
     if (node.count > 0) {
@@ -740,8 +744,6 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
 
 void SweptSphereQuery::sweepWide(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept {
 #if defined(CLOD_PACKET_AVX2)
-  const std::vector<WideBoxTree::Node>& nodes = wide_->nodes;
-  const std::vector<std::uint32_t>& order = tree_->order;
   const Vec3 inv = reciprocals(d);
   detail::NodeFilterSweep s{};
   for (int k = 0; k < 3; ++k) {
@@ -752,58 +754,18 @@ void SweptSphereQuery::sweepWide(const Vec3& a, const Vec3& d, double R, Best& b
   // As sweepTree: the grown box holds every centre within R of the node's triangles, its rounding covered.
   s.grow = R * (1.0 + 1e-12) + 1e-12 * magnitudeOf(a, a + d);
   s.reach = best.reach;
-  detail::RecordFilterSweep filter{{a.x(), a.y(), a.z()}, {d.x(), d.y(), d.z()}, 1.0, best.invdd, R, best.reach};
-  const auto record = [this](std::uint32_t t) { return recordOf(t); };
-  struct Item {
-    std::uint32_t child, few;
-    double t;
-  };
-  Item stack[3 * kMaxBoxTreeDepth + 8];  // a node pops one item and pushes at most four
-  int top = 0;
-  stack[top++] = {0, 0, 0.0};
-  while (top > 0) {
-    const Item item = stack[--top];
-    if (item.t > best.toi) continue;  // every contact inside comes later
-    if (item.few > 0) {
-      const std::uint32_t from = item.child, end = from + item.few;
-      for (std::uint32_t i = from; i < end; ++i) __builtin_prefetch(recordOf(order[i]));
-      for (std::uint32_t i = from; i < end;) {
-        std::uint32_t held[4];
-        int n = 0;
-        for (; i < end && n < 4; ++i)
-          if (best.admit(order[i])) held[n++] = order[i];
-        if (n > 0)
-          filterFour(held, n, std::min(1.0, best.toi), filter, record,
-                     [&](std::uint32_t t) { testRecord(t, a, d, R, best); });
-      }
-      continue;
-    }
-    const WideBoxTree::Node& node = nodes[item.child];
-    s.tMax = best.toi;
-    s.plane = best.planeReady();
-    if (s.plane) {
-      for (int k = 0; k < 3; ++k) s.n[k] = best.n[k];
-      s.offset = best.offset;
-      s.clearance = best.clearance();
-    }
-    double enter[4];
-    unsigned keep = detail::nodeFilterAvx2(node.lanes, node.count, s, enter);
-    int lane[4], n = 0;
-    for (; keep != 0; keep &= keep - 1) {
-      const int k = __builtin_ctz(keep);
-      int j = n++;  // farthest first: the nearest ends on top of the stack
-      for (; j > 0 && enter[lane[j - 1]] < enter[k]; --j) lane[j] = lane[j - 1];
-      lane[j] = k;
-    }
-    for (int j = 0; j < n; ++j) {
-      const int k = lane[j];
-      if (node.few[k] == 0) {
-        const char* line = reinterpret_cast<const char*>(&nodes[node.child[k]]);
-        for (std::size_t b = 0; b < sizeof(WideBoxTree::Node); b += 64) __builtin_prefetch(line + b);
-      }
-      stack[top++] = {node.child[k], node.few[k], enter[k]};
-    }
-  }
+  wide_->walk([&] { return best.toi; },  // every contact inside a node entered later comes later
+              [&](const WideBoxTree::Node& node, double* enter) {
+                s.tMax = best.toi;
+                s.plane = best.planeReady();
+                if (s.plane) {
+                  for (int k = 0; k < 3; ++k) s.n[k] = best.n[k];
+                  s.offset = best.offset;
+                  s.clearance = best.clearance();
+                }
+                return detail::nodeFilterAvx2(node.lanes, node.count, s, enter);
+              },
+              [&](std::uint32_t first, std::uint32_t few) { testRun(first, few, a, d, R, best); });
 #else
   sweepTree(a, d, R, best);
 #endif

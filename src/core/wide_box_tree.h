@@ -46,6 +46,46 @@ struct WideBoxTree {
   static std::shared_ptr<const WideBoxTree> build(const MeshBoxTree& tree, const std::vector<std::uint8_t>& small,
                                                   const std::vector<std::uint32_t>& first);
   std::size_t bytes() const noexcept { return sizeof(*this) + nodes.capacity() * sizeof(Node); }
+
+  /**
+   * \brief A walk from the root, nearest first. test(node, key) answers the lanes of a node to enter (bits) and writes
+   * each one's key (a lower bound of what it can give, in the walk's order); run(first, few) takes a leaf's or small
+   * subtree's triangles, order[first, first + few); bound() is the key beyond which nothing can win, read again as
+   * the walk narrows it. Pushes the entered lanes farthest first and requests their nodes' lines, so the stack takes
+   * the nearest next. Allocates nothing.
+   */
+  template <class Bound, class Test, class Run>
+  void walk(const Bound& bound, const Test& test, const Run& run) const {
+    struct Item {
+      std::uint32_t child, few;
+      double key;
+    };
+    Item stack[3 * kMaxBoxTreeDepth + 8];  // a node pops one item and pushes at most four
+    int top = 0;
+    stack[top++] = {0, 0, 0.0};
+    while (top > 0) {
+      const Item item = stack[--top];
+      if (item.key > bound()) continue;
+      if (item.few > 0) {
+        run(item.child, item.few);
+        continue;
+      }
+      const Node& node = nodes[item.child];
+      double key[4];
+      int lane[4], n = 0;
+      for (unsigned keep = test(node, key); keep != 0; keep &= keep - 1) {
+        const int k = __builtin_ctz(keep);
+        int j = n++;
+        for (; j > 0 && key[lane[j - 1]] < key[k]; --j) lane[j] = lane[j - 1];
+        lane[j] = k;
+        if (node.few[k] == 0) {
+          const char* line = reinterpret_cast<const char*>(&nodes[node.child[k]]);
+          for (std::size_t b = 0; b < sizeof(Node); b += 64) __builtin_prefetch(line + b);
+        }
+      }
+      for (int j = 0; j < n; ++j) stack[top++] = {node.child[lane[j]], node.few[lane[j]], key[lane[j]]};
+    }
+  }
 };
 
 }  // namespace clod_haptics

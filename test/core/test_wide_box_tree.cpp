@@ -63,6 +63,14 @@ std::vector<Vec3> randomNode(std::mt19937_64& rng, const Vec3& around, double sc
   return corners;
 }
 
+/** A point and a scale for the nodes around it (1 mm to 10 m): near the origin, or on odd rounds 1e3 scales away. */
+Vec3 randomPoint(std::mt19937_64& rng, int round, double& scale) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  scale = std::pow(10.0, -3.0 + 4.0 * u(rng));
+  const Vec3 origin = Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * (round % 2 ? 1e3 * scale : 0.0);
+  return origin + Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * 4.0 * scale;
+}
+
 double nearestTo(const Vec3& p, const std::vector<Vec3>& corners) {
   double nearest = std::numeric_limits<double>::infinity();
   for (std::size_t j = 0; j < corners.size(); j += 3)
@@ -133,9 +141,8 @@ TEST(NodeFilterAvx2, KeepsEveryNodeASweepComesWithinReachOf) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::size_t within = 0, dropped = 0, late = 0, beyond = 0, kept = 0;
   for (int round = 0; round < 4000; ++round) {
-    const double scale = std::pow(10.0, -3.0 + 4.0 * u(rng));
-    const Vec3 origin = Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * (round % 2 ? 1e3 * scale : 0.0);
-    const Vec3 a = origin + Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * 4.0 * scale;
+    double scale;
+    const Vec3 a = randomPoint(rng, round, scale);
     Vec3 d = round % 7 == 0 ? Vec3(Vec3::Zero()) : Vec3(randomUnit(rng) * scale * std::pow(10.0, -3.0 + 3.5 * u(rng)));
     if (round % 11 == 0) d[round % 3] = 0.0;  // parallel to a face of every box
     const double tMax = round % 3 == 0 ? u(rng) : std::numeric_limits<double>::infinity();
@@ -199,9 +206,8 @@ TEST(NodeNearAvx2, KeepsEveryNodeWithinTheDistanceAndBoundsItFromBelow) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::size_t within = 0, dropped = 0, above = 0, beyond = 0, kept = 0;
   for (int round = 0; round < 20000; ++round) {
-    const double scale = std::pow(10.0, -3.0 + 4.0 * u(rng));
-    const Vec3 origin = Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * (round % 2 ? 1e3 * scale : 0.0);
-    const Vec3 p = origin + Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * 4.0 * scale;
+    double scale;
+    const Vec3 p = randomPoint(rng, round, scale);
     const unsigned count = 1 + static_cast<unsigned>(round % 4);
     detail::NodeLanes lanes{};
     double nearest[4];

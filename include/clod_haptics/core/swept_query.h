@@ -130,6 +130,9 @@ class SweptSphereQuery {
   void sweepGrid(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
   void sweepCell(const CellGrid::CellRef& ref, std::uint64_t key, const Vec3& p0, const Vec3& p1, const Vec3& a,
                  const Vec3& d, double R, double t0, double t1, Best& best) const noexcept;
+  /** The triangles order[from, from + few) of tree_ (a leaf or small subtree), through the records' filter. */
+  void testRun(std::uint32_t from, std::uint32_t few, const Vec3& a, const Vec3& d, double R,
+               Best& best) const noexcept;
   void sweepTree(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
   void sweepWide(const Vec3& a, const Vec3& d, double R, Best& best) const noexcept;
   /** Whether the grid's cell at a local point lists more than ClodDetector::kTreeAboveEntries triangles. */
