@@ -269,7 +269,7 @@ class ClodDetector {
   // own when it brings one that fits, see meshBoxTreeOf).
   std::shared_ptr<const MeshBoxTree> meshTree_;
   // The same four children to a node (WideBoxTree, internal to the core), walked four nodes a test in AVX2 where the
-  // CPU runs it; null without AVX2.
+  // CPU runs it; built only for a grid with a crowded cell (kTreeAboveEntries), null otherwise and without AVX2.
   std::shared_ptr<const WideBoxTree> meshWide_;
   const Triangle* triangleIndex_ = nullptr;  // the mesh's arrays (kept alive by mesh_)
   const Vec3* vertices_ = nullptr;

@@ -35,7 +35,7 @@ struct NodeFilterSweep {
 
 #if defined(CLOD_PACKET_AVX2)
 /**
- * \brief Bit k set: child k (k < lanes) may hold a triangle that the sweep meets before tMax; enter[k] is then the
+ * \brief Bit k set: child k (k < count) may hold a triangle that the sweep meets before tMax; enter[k] is then the
  * time at which the sweep enters its grown box (the walk's order). Never clears a child that the scalar walk
  * (SweptSphereQuery::sweepTree's enterNode and Best::below) keeps.
  */
