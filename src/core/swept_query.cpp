@@ -663,6 +663,12 @@ inline double enterNode(const BoxNode& n, const NodeSlab& slab, const Vec3& a, c
   return planeBoundMisses(slab.centre, slab.radius, slab.normal, slab.thick, p0, p1 - p0, reach, 1.0) ? kNever : t0;
 }
 
+// What the tree walks grow a node's box by (sweepTree, sweepWide): the grown box holds every centre within R of the
+// node's triangles, its rounding covered by a margin.
+inline double treeGrow(double R, const Vec3& a, const Vec3& d) {
+  return R * (1.0 + 1e-12) + 1e-12 * magnitudeOf(a, a + d);
+}
+
 }  // namespace
 
 void SweptSphereQuery::testRun(std::uint32_t from, std::uint32_t few, const Vec3& a, const Vec3& d, double R,
@@ -696,8 +702,7 @@ void SweptSphereQuery::sweepTree(const Vec3& a, const Vec3& d, double R, Best& b
   const std::vector<std::uint32_t>& order = tree_->order;
   if (nodes.empty()) return;
   const NodeSlab* slabs = tree_->slabs.data();  // one per node (meshBoxTreeOf)
-  // The grown box holds every centre within R of the node's triangles; its rounding is covered by a margin.
-  const double grow = R * (1.0 + 1e-12) + 1e-12 * magnitudeOf(a, a + d);
+  const double grow = treeGrow(R, a, d);
   const Vec3 inv = reciprocals(d);
   struct Item {
     std::uint32_t node;
@@ -751,8 +756,7 @@ void SweptSphereQuery::sweepWide(const Vec3& a, const Vec3& d, double R, Best& b
     s.d[k] = d[k];
     s.inv[k] = inv[k];
   }
-  // As sweepTree: the grown box holds every centre within R of the node's triangles, its rounding covered.
-  s.grow = R * (1.0 + 1e-12) + 1e-12 * magnitudeOf(a, a + d);
+  s.grow = treeGrow(R, a, d);
   s.reach = best.reach;
   wide_->walk([&] { return best.toi; },  // every contact inside a node entered later comes later
               [&](const WideBoxTree::Node& node, double* enter) {
