@@ -10,6 +10,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <random>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -25,6 +26,44 @@
 namespace clod_test {
 
 using namespace clod_haptics;
+
+/** \brief A random unit vector (normal draws, normalised). */
+inline Vec3 randomUnit(std::mt19937_64& rng) {
+  std::normal_distribution<double> n;
+  Vec3 v(n(rng), n(rng), n(rng));
+  return v.normalized();
+}
+
+/**
+ * \brief A point for a round of a randomised bound test, and the scale of the geometry to put around it (1 mm to
+ * 10 m): near the origin, or on odd rounds 1e3 scales away (coordinates much larger than the geometry).
+ */
+inline Vec3 randomPoint(std::mt19937_64& rng, int round, double& scale) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  scale = std::pow(10.0, -3.0 + 4.0 * u(rng));
+  const Vec3 origin = Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * (round % 2 ? 1e3 * scale : 0.0);
+  return origin + Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * 4.0 * scale;
+}
+
+/**
+ * \brief The tally of a conservative filter against the geometry: items the reference puts within reach (every one
+ * must be kept) and beyond it (most should be dropped, or the filter helps nobody).
+ */
+struct FilterTally {
+  std::size_t within = 0, dropped = 0, beyond = 0, kept = 0;
+  void count(bool reached, bool got) {
+    within += reached;
+    dropped += reached && !got;
+    beyond += !reached;
+    kept += !reached && got;
+  }
+  /** Nothing within reach dropped, more than `least` within reach seen, under half of the others kept. */
+  void expectConservative(std::size_t least, const std::string& items) const {
+    EXPECT_EQ(dropped, 0u) << "of " << within << " " << items << " within reach";
+    EXPECT_GT(within, least);
+    EXPECT_LT(kept, beyond / 2) << "a filter that keeps everything passes the first check and helps nobody";
+  }
+};
 
 /** \brief A finely tessellated surface z = f(x, y) over [-1, 1]^2, n x n squares (two triangles each), turned by
  * rotation and moved by shift. */
