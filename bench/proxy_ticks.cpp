@@ -1,17 +1,20 @@
 // proxy_ticks: the cost of the shipped proxy's ticks on one mesh, for comparing two builds (python3 bench/ab.py).
 //
-//   proxy_ticks MESH [--runs N] [--bag BAG] [--only-trajectory] [--size MM]
+//   proxy_ticks MESH [--runs N] [--bag BAG] [--only-trajectory] [--size MM] [--mu-static MS] [--mu-dynamic MD]
 //
 // MESH: a mesh file, scaled to 15 cm (or to MM millimetres: the section also runs them at 40), or ellipsoid-edge-E, the
 // section's ellipsoid with edges of E r (0.1 and 0.25 there): the bench's proxy section's models (proxy_bench.h), its
 // stylus (r = 2 mm, 400 N/m, 1 kHz) and its paths: N pushes (default 40, as the section's cost table) at 0.5 and 2 m/s,
 // and the recorded Geomagic trajectory placed over the model from where the stylus is first clear of it (when BAG is
-// given). Each path is run twice from a reset renderer: `1st` finds its region out of the caches, `rep` runs it again.
-// Prints one line per path set and pass: name, pass, ticks, mean, p50, p90, p99, max (ns), and the top 1% of ticks'
-// sweeps and triangles tested. No result files: the numbers drift with this machine's load, so compare builds by
-// alternating them (python3 bench/ab.py).
+// given). --mu-static and --mu-dynamic set the stylus's friction (default 0, as shipped; MD defaults to MS, and is
+// clamped to it). Each path is run twice from a reset renderer: `1st` finds its region out of the caches, `rep` runs it
+// again. Prints one line per path set and pass: name, pass, ticks, mean, p50, p90, p99, max (ns), and the top 1% of
+// ticks' sweeps and triangles tested; then a hash of every tick's proxy position (the bits of its coordinates), so that
+// two builds that claim the same answers can show it. No result files: the numbers drift with this machine's load, so
+// compare builds by alternating them (python3 bench/ab.py).
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -56,13 +59,15 @@ void report(const char* name, const char* pass, std::vector<float> t, const std:
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: proxy_ticks MESH [--runs N] [--bag BAG] [--only-trajectory] [--size MM]\n");
+    std::fprintf(stderr,
+                 "usage: proxy_ticks MESH [--runs N] [--bag BAG] [--only-trajectory] [--size MM] [--mu-static MS] "
+                 "[--mu-dynamic MD]\n");
     return 2;
   }
   int runs = 40;
   std::string bag;
   bool onlyTrajectory = false;
-  double sizeMm = 150.0;
+  double sizeMm = 150.0, muStatic = 0.0, muDynamic = -1.0;
   for (int i = 2; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--runs") && i + 1 < argc) {
       char* end = nullptr;
@@ -81,6 +86,16 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "proxy_ticks: --size takes a positive number of millimetres, got '%s'\n", argv[i]);
         return 2;
       }
+    } else if ((!std::strcmp(argv[i], "--mu-static") || !std::strcmp(argv[i], "--mu-dynamic")) && i + 1 < argc) {
+      const bool isStatic = !std::strcmp(argv[i], "--mu-static");
+      char* end = nullptr;
+      const double mu = std::strtod(argv[++i], &end);
+      if (*end != '\0' || !(mu >= 0.0) || !std::isfinite(mu)) {
+        std::fprintf(stderr, "proxy_ticks: %s takes a friction coefficient of 0 or more, got '%s'\n", argv[i - 1],
+                     argv[i]);
+        return 2;
+      }
+      (isStatic ? muStatic : muDynamic) = mu;
     } else if (!std::strcmp(argv[i], "--only-trajectory")) {
       onlyTrajectory = true;
     } else {
@@ -124,9 +139,20 @@ int main(int argc, char** argv) {
     sets.push_back({"traj", {clod_bench::fromFreeSpace(*model, clod_bench::placeOver(recorded, *model->mesh))}});
   }
 
-  HapticRenderer renderer(clod_bench::stylus());
+  ProxyParameters stylus = clod_bench::stylus();
+  stylus.muStatic = muStatic;
+  stylus.muDynamic = muDynamic < 0.0 ? muStatic : muDynamic;
+  HapticRenderer renderer(stylus);
   ProxyTick tick;
   Vec3 sink = Vec3::Zero();
+  std::uint64_t hash = 1469598103934665603ull;  // FNV-1a over the proxy's coordinates, tick after tick
+  auto mix = [&hash](const Vec3& p) {
+    for (int k = 0; k < 3; ++k) {
+      std::uint64_t bits;
+      std::memcpy(&bits, &p[k], sizeof bits);
+      for (int b = 0; b < 8; ++b) hash = (hash ^ ((bits >> (8 * b)) & 0xffu)) * 1099511628211ull;
+    }
+  };
   for (const auto& [name, paths] : sets) {
     std::vector<float> t[2];
     std::vector<std::uint32_t> sweeps[2], tested[2];
@@ -139,11 +165,13 @@ int main(int argc, char** argv) {
           sweeps[pass].push_back(tick.sweeps);
           tested[pass].push_back(tick.trianglesTested);
           sink += tick.force;
+          mix(tick.proxy);
         }
       }
     }
     report(name.c_str(), "1st", t[0], sweeps[0], tested[0]);
     report(name.c_str(), "rep", t[1], sweeps[1], tested[1]);
   }
+  std::printf("proxy positions hash %016llx\n", static_cast<unsigned long long>(hash));
   return sink.allFinite() ? 0 : 1;
 }
