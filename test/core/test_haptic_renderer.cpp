@@ -667,6 +667,54 @@ TEST(HapticRenderer, FrictionConeStaticThenDynamic) {
   EXPECT_NEAR(pen.force.back().x(), 0.0, 1e-12);
 }
 
+// Friction is decided at the first contact of a tick, before any slide: a sticking proxy sweeps once a tick (the
+// contact it rests on answers at once) instead of sliding frictionless first and throwing that slide away (two sweeps
+// a tick, the second a search).
+TEST(HapticRenderer, AStickingProxySweepsOnceATick) {
+  const SweptScene scene = sceneOf(box(Vec3(-0.05, -0.05, -0.05), Vec3(0.05, 0.05, 0.0)));
+  HapticRenderer renderer(stylus(0.5, 0.3));
+  ProxyTick tick;
+  const double depth = 0.001;
+  for (const Vec3& d : path(Vec3(0, 0, 0.01), Vec3(0, 0, kRadius - depth), 0.05)) renderer.update(scene, d, kDt, tick);
+  const Vec3 rest = tick.proxy;
+  int ticks = 0;
+  for (const Vec3& d : path(Vec3(0, 0, kRadius - depth), Vec3(0.00045, 0.0001, kRadius - depth), 0.01)) {
+    renderer.update(scene, d, kDt, tick);
+    if (d.head<2>().norm() <= HapticRenderer::kStillRadii * kRadius) continue;  // within the still distance: no sweep
+    ASSERT_TRUE(tick.sticking);
+    ASSERT_EQ(tick.proxy, rest);
+    EXPECT_EQ(tick.sweeps, 1u) << "device at " << d.transpose();
+    ++ticks;
+  }
+  EXPECT_GT(ticks, 40);
+}
+
+// The friction cone's normal is the contact normal where the proxy stands: in a V-groove both walls' (it rests on
+// both), so a device pressed straight into the groove and dragged along it by less than mu_s times the push holds the
+// proxy; dragged farther, the proxy slides along the groove, lagging by mu_d times the push. With one wall's normal
+// the push would count as half drag and the proxy would slide at once.
+TEST(HapticRenderer, FrictionInAGrooveUsesBothWalls) {
+  const SweptScene scene = sceneOf(groove());
+  HapticRenderer renderer(stylus(0.5, 0.3));
+  ProxyTick tick;
+  const double bottom = kRadius * std::sqrt(2.0), depth = 0.001;
+  for (const Vec3& d : path(Vec3(0.001, 0.0, 0.02), Vec3(0.001, 0.0, bottom - depth), 0.05, 50))
+    renderer.update(scene, d, kDt, tick);
+  const Vec3 rest = tick.proxy;
+  ASSERT_NEAR((rest - Vec3(0.001, 0.0, bottom)).norm(), 0.0, 1e-6);
+  ASSERT_EQ(tick.planes, 2u);
+  for (const Vec3& d : path(Vec3(0.001, 0.0, bottom - depth), Vec3(0.00145, 0.0, bottom - depth), 0.01)) {
+    renderer.update(scene, d, kDt, tick);
+    ASSERT_EQ(tick.proxy, rest) << "moved inside the static cone at device x " << d.x();
+  }
+  for (const Vec3& d : path(Vec3(0.00145, 0.0, bottom - depth), Vec3(0.006, 0.0, bottom - depth), 0.01))
+    renderer.update(scene, d, kDt, tick);
+  EXPECT_TRUE(tick.sliding);
+  EXPECT_NEAR(tick.device.x() - tick.proxy.x(), 0.3 * depth, 1e-6);
+  EXPECT_NEAR(tick.proxy.y(), 0.0, 1e-9);
+  EXPECT_NEAR(tick.proxy.z(), bottom, 1e-6);
+}
+
 // A device creeping along a surface slower than the proxy's still distance a tick: the proxy is never left more than
 // that distance behind, so the force errs by at most the stiffness times it (0.2 um, 80 uN here), and it follows.
 TEST(HapticRenderer, ACreepingDeviceLeavesTheProxyAtMostTheStillDistanceBehind) {
@@ -730,6 +778,7 @@ TEST(HapticRenderer, AFreeProxyFollowsACreepingDeviceExactly) {
 // ---- The proxy never ends a tick inside a shared mesh, over long random device paths (brute force).
 
 TEST(HapticRenderer, ProxyNeverInsideSharedMeshesOnRandomPaths) {
+  bool withFriction = true;  // every other mesh with friction (decided at each tick's first contact)
   for (const std::string& file : clod_test::sharedMeshes()) {
     auto mesh = clod_test::loadNormalized(file);
     auto set = std::make_shared<const ClodSphereSet>(ClodBuilder(mesh).build(0.01));
@@ -741,7 +790,8 @@ TEST(HapticRenderer, ProxyNeverInsideSharedMeshesOnRandomPaths) {
     ProxyParameters params;
     params.radius = r;
     params.stiffness = 1.0;
-    params.muStatic = file.find("head") != std::string::npos ? 0.4 : 0.0;
+    params.muStatic = withFriction ? 0.4 : 0.0;
+    withFriction = !withFriction;
     params.muDynamic = 0.2;
     HapticRenderer renderer(params);
     renderer.reset(mesh->modelBounds().max() + Vec3::Constant(0.1));

@@ -43,8 +43,9 @@ struct ProxyTick {
  * the contact's normal as a constraint plane, moves its goal to the point nearest the device that satisfies
  * every plane found (up to three), and sweeps again, a bounded number of times. So it slides along faces,
  * into grooves and corners, and stops on a thin part however far the device went through it in one tick.
- * A friction cone then holds it in place while the tangential force stays within muStatic times the normal
- * force, and makes it lag behind by muDynamic times the normal force while it slides.
+ * With friction, the first contact of a tick decides before any slide: a friction cone holds the proxy there
+ * while the tangential force stays within muStatic times the normal force, and makes it lag behind by muDynamic
+ * times the normal force while it slides.
  *
  * update() allocates nothing and never throws. One renderer per device; not shared between threads.
  */
@@ -87,9 +88,16 @@ class HapticRenderer {
 
  private:
   struct Planes;
-  Vec3 solve(const SweptScene& scene, const Vec3& from, const Vec3& target, Planes& planes, ProxyTick& out);
-  Vec3 friction(const SweptScene& scene, const Vec3& start, const Vec3& device, const Vec3& free, const Vec3& normal,
-                ProxyTick& out);
+  enum class Friction { None, Stick, Slide };
+  Vec3 solve(const SweptScene& scene, const Vec3& from, const Vec3& device, Planes& planes, ProxyTick& out);
+  /**
+   * The friction cone at the proxy's first contact of a tick (anchor), with the contact normal of planes and of the
+   * last tick's constraints that still block there (added to planes): Stick (the proxy stays), Slide (target becomes
+   * the point lagging the device by muDynamic times the push) or None (no push into the surface). still: the solve's
+   * still distance (a constraint that blocks within it blocks at once).
+   */
+  Friction friction(const SweptScene& scene, const Vec3& anchor, const Vec3& device, double still, Planes& planes,
+                    ProxyTick& out, Vec3& target);
   Vec3 force(const SweptScene& scene, const Vec3& device, double dt, const ProxyTick& tick) const;
 
   ProxyParameters parameters_;
