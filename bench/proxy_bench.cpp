@@ -184,6 +184,13 @@ ProxyParameters stylus() {
   return params;
 }
 
+ProxyParameters frictionStylus() {
+  ProxyParameters params = stylus();
+  params.muStatic = 0.5;
+  params.muDynamic = 0.4;
+  return params;
+}
+
 namespace {
 
 /** What one force model did over a run. */
@@ -202,10 +209,17 @@ bool crossed(const Model& m, const Vec3& from, const Vec3& to) {
   return c.contact.hit;
 }
 
+// The force models of the tables: the penalty spring, the proxy as shipped, the proxy with friction.
+enum class ForceModel { Penalty, Proxy, ProxyFriction };
+const char* nameOf(ForceModel f) {
+  return f == ForceModel::Penalty ? "penalty" : f == ForceModel::Proxy ? "proxy" : "proxy-friction";
+}
+
 // The forces a model renders over a path (and, for the proxy, whether it ended a tick inside the mesh).
-Outcome run(const Model& m, const std::vector<Vec3>& path, bool proxy) {
+Outcome run(const Model& m, const std::vector<Vec3>& path, ForceModel model) {
   Outcome o;
-  HapticRenderer renderer(stylus());
+  const bool proxy = model != ForceModel::Penalty;
+  HapticRenderer renderer(model == ForceModel::ProxyFriction ? frictionStylus() : stylus());
   QueryCache cache;
   ContactResult c;
   ProxyTick tick;
@@ -254,11 +268,12 @@ void popThroughs(const std::vector<std::unique_ptr<Model>>& models, int runs, st
   for (const auto& m : models) {
     for (double speed : kSpeeds) {
       const auto paths = pushes(*m, speed, runs, 7);
-      for (bool proxy : {false, true}) {
+      for (ForceModel model : {ForceModel::Penalty, ForceModel::Proxy, ForceModel::ProxyFriction}) {
+        const bool proxy = model != ForceModel::Penalty;
         Outcome total;
         int runsPopped = 0;
         for (const auto& p : paths) {
-          const Outcome o = run(*m, p, proxy);
+          const Outcome o = run(*m, p, model);
           runsPopped += o.popThroughs > 0;
           total.popThroughs += o.popThroughs;
           total.pushingTicks += o.pushingTicks;
@@ -266,7 +281,7 @@ void popThroughs(const std::vector<std::unique_ptr<Model>>& models, int runs, st
           total.insideTicks += o.insideTicks;
           total.maxJump = std::max(total.maxJump, o.maxJump);
         }
-        const char* name = proxy ? "proxy" : "penalty";
+        const char* name = nameOf(model);
         csv << m->name << "," << m->kind << "," << m->sizeMm << "," << speed << "," << paths.size() << "," << name
             << "," << total.popThroughs << "," << runsPopped << "," << total.pushingTicks << "," << num(total.maxJump)
             << "," << total.insideTicks << "," << total.contactTicks << "\n";
@@ -314,7 +329,7 @@ void costs(const Model& m, const std::string& pathName, const std::vector<std::v
            std::ostream& md) {
   ContactResult c;
   QueryCache cache;
-  HapticRenderer renderer(stylus());
+  HapticRenderer renderer(stylus()), rubbery(frictionStylus());
   ProxyTick tick;
   Vec3 sink = Vec3::Zero();
   std::uint64_t sweeps = 0;
@@ -329,8 +344,14 @@ void costs(const Model& m, const std::string& pathName, const std::vector<std::v
          m.detector->query(p, kR, DetectionMode::Exact, c, &cache);
          sink += penaltyForce(c, kStiffness);
        }},
-      {"proxy", [&](const Vec3& p) {
+      {"proxy",
+       [&](const Vec3& p) {
          renderer.update(m.scene, p, kDt, tick);
+         sink += tick.force;
+         sweeps += tick.sweeps;
+       }},
+      {"proxy-friction", [&](const Vec3& p) {
+         rubbery.update(m.scene, p, kDt, tick);
          sink += tick.force;
          sweeps += tick.sweeps;
        }}};
@@ -339,6 +360,7 @@ void costs(const Model& m, const std::string& pathName, const std::vector<std::v
   for (const auto& contender : contenders) {
     const std::vector<Vec3>& first = paths.front();
     renderer.reset(first.front());
+    rubbery.reset(first.front());
     timeTicks(std::vector<Vec3>(first.begin(), first.begin() + std::min<std::size_t>(first.size(), 200)),
               contender.second);
     std::vector<float> times[2];
@@ -346,6 +368,7 @@ void costs(const Model& m, const std::string& pathName, const std::vector<std::v
     for (const auto& path : paths)
       for (int pass = 0; pass < 2; ++pass) {
         renderer.reset(path.front());
+        rubbery.reset(path.front());
         cache = QueryCache();
         const std::vector<float> t = timeTicks(path, contender.second);
         times[pass].insert(times[pass].end(), t.begin(), t.end());
@@ -382,7 +405,8 @@ void proxySection(const std::vector<std::string>& sharedPaths, const std::string
         "pop-through: the point the force pulls the stylus to (the proxy; for the penalty model the nearest surface "
         "point pushed out by r) passes through the part between two ticks (a sphere of r/2 swept between the two "
         "meets the mesh). Ticks pushing along the motion (the issue's measure) also count a proxy that slides round "
-        "a thin cylinder and pulls the stylus on beside it.\n";
+        "a thin cylinder and pulls the stylus on beside it. `proxy-friction`: the same proxy with friction as a user "
+        "turns it on (mu_static 0.5, mu_dynamic 0.4; the shipped default is frictionless).\n";
   const std::string loadBefore = loadAverage();
   const auto started = std::chrono::steady_clock::now();
   std::vector<std::unique_ptr<Model>> models = thinModels();

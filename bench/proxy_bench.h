@@ -41,6 +41,8 @@ std::vector<std::vector<clod_haptics::Vec3>> pushes(const Model& m, double speed
 std::vector<clod_haptics::Vec3> fromFreeSpace(const Model& m, const std::vector<clod_haptics::Vec3>& path);
 /** \brief The shipped stylus's proxy: r = 2 mm, 400 N/m, no friction, no clamp. */
 clod_haptics::ProxyParameters stylus();
+/** \brief The same stylus with friction as a user turns it on (mu_static 0.5, mu_dynamic 0.4: a rubbery surface). */
+clod_haptics::ProxyParameters frictionStylus();
 
 /**
  * \brief The proxy section, at the stylus scale (r = 2 mm, 400 N/m, 1 kHz): per-tick cost of the proxy, the
