@@ -54,6 +54,8 @@ class ByteWriter {
    * \throws FormatError "cannot write <kind> file '<path>': ..." when the file cannot be opened or written.
    */
   void writeWithChecksum(const std::string& path, const char* kind);
+  /** \brief The bytes so far (tests compare two writes). */
+  const std::vector<char>& bytes() const { return buffer_; }
 
  private:
   std::vector<char> buffer_;

@@ -541,13 +541,46 @@ struct CellTables {
 };
 
 /**
- * Writes the cells of sorted candidates into the entries: per cell a header (its candidate count, then in the next 4
- * bytes the number of distinct spheres listing them) followed by its candidates. One packer per thread.
+ * Counts the distinct spheres listing one cell's candidates at a time (each triangle's first sphere), for the cell's
+ * header: open() a cell, add() its candidates, count().
+ */
+class SphereCounter {
+ public:
+  SphereCounter(const std::vector<std::uint32_t>& sphereOf, std::size_t spheres)
+      : sphereOf_(sphereOf), cellOfSphere_(spheres + 1, kNoCell) {}
+  void open() {
+    spheres_ = 0;
+    ++cell_;
+  }
+  void add(std::uint32_t triangle) {
+    // A triangle no sphere lists (kept by a caller's set that breaks the coverage invariant) counts as one more.
+    std::uint32_t& seen = cellOfSphere_[std::min<std::size_t>(sphereOf_[triangle], cellOfSphere_.size() - 1)];
+    spheres_ += seen != cell_;
+    seen = cell_;
+  }
+  std::uint32_t count() const { return spheres_; }
+
+ private:
+  static constexpr std::uint32_t kNoCell = 0;   // no cell yet: cells are numbered from 1
+  const std::vector<std::uint32_t>& sphereOf_;  // the first sphere listing each triangle
+  std::vector<std::uint32_t> cellOfSphere_;     // per sphere (and one for none), the last cell listing it
+  std::uint32_t cell_ = kNoCell;                // the open cell's number
+  std::uint32_t spheres_ = 0;                   // distinct spheres of the open cell so far
+};
+
+/** Writes a cell's header: its candidate count, then in the next 4 bytes the number of distinct spheres. */
+void writeHeader(CellGrid::Entry& e, std::uint32_t count, std::uint32_t spheres) {
+  e = CellGrid::Entry{count, 0, {0, 0, 0}};
+  std::memcpy(reinterpret_cast<unsigned char*>(&e) + 4, &spheres, sizeof spheres);
+}
+
+/**
+ * Writes the cells of sorted candidates into the entries: per cell a header (writeHeader) followed by its
+ * candidates. One packer per thread.
  */
 class CellPacker {
  public:
-  CellPacker(const std::vector<std::uint32_t>& sphereOf, std::size_t spheres)
-      : sphereOf_(sphereOf), cellOfSphere_(spheres + 1, kNoCell) {}
+  CellPacker(const std::vector<std::uint32_t>& sphereOf, std::size_t spheres) : counter_(sphereOf, spheres) {}
 
   /** Writes the slice's cells at entries[at, at + slice.entries()); their keys and headers go to tables. */
   void pack(const SliceCandidates& slice, CellGrid::Entry* entries, std::size_t at, CellTables& tables) {
@@ -555,37 +588,27 @@ class CellPacker {
     tables.headers.clear();
     std::uint64_t last = CellGrid::kOutside;
     std::size_t header = at;
-    std::uint32_t spheres = 0;
     auto close = [&] {
-      if (last == CellGrid::kOutside) return;
-      Entry& e = entries[header];
-      e = Entry{static_cast<std::uint32_t>(at - header - 1), 0, {0, 0, 0}};
-      std::memcpy(reinterpret_cast<unsigned char*>(&e) + 4, &spheres, sizeof spheres);
+      if (last != CellGrid::kOutside)
+        writeHeader(entries[header], static_cast<std::uint32_t>(at - header - 1), counter_.count());
     };
     for (const Candidate& c : slice.list) {
       if (c.key() != last) {
         close();
-        spheres = 0;
-        ++cell_;
+        counter_.open();
         header = at++;
         tables.headers.push_back(header);
         tables.keys.push_back(c.key());
         last = c.key();
       }
       entries[at++] = Entry{c.triangle, c.distance, {c.direction[0], c.direction[1], c.direction[2]}};
-      // A triangle no sphere lists (kept by a caller's set that breaks the coverage invariant) counts as one more.
-      std::uint32_t& seen = cellOfSphere_[std::min<std::size_t>(sphereOf_[c.triangle], cellOfSphere_.size() - 1)];
-      spheres += seen != cell_;
-      seen = cell_;
+      counter_.add(c.triangle);
     }
     close();
   }
 
  private:
-  static constexpr std::uint32_t kNoCell = 0;   // no cell yet: this packer numbers its cells from 1
-  const std::vector<std::uint32_t>& sphereOf_;  // the first sphere listing each triangle
-  std::vector<std::uint32_t> cellOfSphere_;     // per sphere (and one for none), the last cell listing it
-  std::uint32_t cell_ = kNoCell;                // the open cell's number
+  SphereCounter counter_;
 };
 
 /**
@@ -811,6 +834,47 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
     buildDenseIndex(tables.keys, tables.headers, refs);
   else
     buildHashedIndex(tables.keys, tables.headers, refs);
+}
+
+CellGrid CellGrid::forLevel(const CellGrid& sameMesh, const TriangleMesh& mesh, const ClodSphereSet& set, double radius,
+                            double entriesPerTriangle, Index index, double sliceCandidates, double bytesPerTriangle,
+                            bool* reused) {
+  if (reused) *reused = false;
+  if (!sameMesh.empty() && sameMesh.radius_ == radius) {
+    // The cells this level's build would choose: the same as the other grid's, then the same candidates.
+    const MeshFigures figures = measure(mesh);
+    const double maxEntries = std::max(1e6, entriesPerTriangle * static_cast<double>(mesh.size()));
+    const Layout layout =
+        placeCells(figures, radius, cellSide(figures, mesh.size(), radius, maxEntries, bytesPerTriangle));
+    const bool sameCells = layout.h == sameMesh.cell_ && layout.origin == sameMesh.origin_ &&
+                           std::equal(layout.dims, layout.dims + 3, sameMesh.dims_) &&
+                           sameMesh.dense() == sameMesh.useDenseIndex(index, mesh.size());
+    if (sameCells) {
+      CellGrid grid = sameMesh;
+      if (grid.recountSpheres(set, mesh.size())) {
+        if (reused) *reused = true;
+        return grid;
+      }
+    }
+  }
+  return CellGrid(mesh, set, radius, entriesPerTriangle, index, sliceCandidates, bytesPerTriangle);
+}
+
+bool CellGrid::recountSpheres(const ClodSphereSet& set, std::size_t triangles) {
+  const std::vector<std::uint32_t> sphereOf = firstSphereOfTriangles(set, triangles);
+  SphereCounter counter(sphereOf, set.size());
+  for (std::size_t at = 0; at < entries_.size();) {
+    const std::uint32_t count = entries_[at].triangle;
+    if (count > entries_.size() - at - 1) return false;
+    counter.open();
+    for (std::size_t k = at + 1; k <= at + count; ++k) {
+      if (entries_[k].triangle >= triangles) return false;  // not a grid of this mesh
+      counter.add(entries_[k].triangle);
+    }
+    writeHeader(entries_[at], count, counter.count());
+    at += 1 + count;
+  }
+  return true;
 }
 
 bool CellGrid::useDenseIndex(Index index, std::size_t triangles) const {

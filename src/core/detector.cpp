@@ -279,9 +279,13 @@ void buildTriangleTrees(const TriangleMesh& m, const ClodSphereSet& s, double pa
 
 namespace {
 // The grid of a Grid detector, built by the detector or for the disk cache (buildGridParts): one set of parameters.
-CellGrid detectorGrid(const TriangleMesh& mesh, const ClodSphereSet& spheres, double radius, const SphereTrees& trees) {
-  return CellGrid(mesh, spheres, radius, 24.0, CellGrid::Index::Auto, 1e6,
-                  ClodDetector::gridBytesPerTriangle(mesh, spheres, trees));
+// sameMesh: another level's grid of the mesh, reused when its cells are the ones this build would choose.
+CellGrid detectorGrid(const TriangleMesh& mesh, const ClodSphereSet& spheres, double radius, const SphereTrees& trees,
+                      const CellGrid* sameMesh = nullptr, bool* reused = nullptr) {
+  const double bytes = ClodDetector::gridBytesPerTriangle(mesh, spheres, trees);
+  if (sameMesh)
+    return CellGrid::forLevel(*sameMesh, mesh, spheres, radius, 24.0, CellGrid::Index::Auto, 1e6, bytes, reused);
+  return CellGrid(mesh, spheres, radius, 24.0, CellGrid::Index::Auto, 1e6, bytes);
 }
 }  // namespace
 
@@ -356,10 +360,10 @@ ClodDetector::ClodDetector(std::shared_ptr<const TriangleMesh> mesh, std::shared
 }
 
 ClodDetector::GridParts ClodDetector::buildGridParts(const TriangleMesh& mesh, const ClodSphereSet& spheres,
-                                                     double radius) {
+                                                     double radius, const CellGrid* sameMesh, bool* reused) {
   GridParts parts;
   parts.trees = buildSphereTrees(mesh, spheres, meshBoxTreePad(mesh));
-  parts.grid = detectorGrid(mesh, spheres, radius, parts.trees);  // last: its construction peak meets only the trees
+  parts.grid = detectorGrid(mesh, spheres, radius, parts.trees, sameMesh, reused);  // last: its peak meets the trees
   return parts;
 }
 

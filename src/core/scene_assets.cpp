@@ -186,14 +186,30 @@ std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<con
     out.cache.source = CacheSource::Hit;
     return found->second;
   }
+  // Another level's Grid detector of this mesh for the same radius (taken before the set's build may drop unused
+  // levels): its grid's candidates are this level's too, so the new grid is made from it (CellGrid::forLevel: a change
+  // of d while touching waits for the clustering and a pass over the candidates, not a whole grid build).
+  std::shared_ptr<const ClodDetector> sibling;
+  if (fastLevel == FastLevel::Grid)
+    for (const auto& entry : levels_)
+      if (std::get<0>(entry.first).first == mesh.get() && std::get<1>(entry.first) == fastLevel &&
+          std::get<2>(entry.first) == radiusBits && entry.second->mesh() == mesh && !entry.second->grid().empty()) {
+        sibling = entry.second;
+        break;
+      }
   auto set = spheresLocked(mesh, distance, out);
   const auto start = std::chrono::steady_clock::now();
+  const CellGrid* sameMesh = sibling ? &sibling->grid() : nullptr;
   ClodDetector::GridSource gridSource;
   if (gridCache_ && fastLevel == FastLevel::Grid) {
     gridSource = [&](double radius) {
       return gridCache_->getOrBuild(
           *mesh, *set, gridKeyLocked(mesh, distance, *set, radius),
-          [&] { return ClodDetector::buildGridParts(*mesh, *set, radius); }, &out.grid);
+          [&] { return ClodDetector::buildGridParts(*mesh, *set, radius, sameMesh, &out.gridFromLevel); }, &out.grid);
+    };
+  } else if (sameMesh) {
+    gridSource = [&](double radius) {
+      return ClodDetector::buildGridParts(*mesh, *set, radius, sameMesh, &out.gridFromLevel);
     };
   }
   auto detector = std::make_shared<const ClodDetector>(mesh, set, fastLevel, gridRadius, gridSource);

@@ -195,8 +195,11 @@ bool HapticDetector::prepareNextLevel(std::vector<LevelPlan>& plan) {
     p.step = quick ? kQuick : kFinal;
     publishLevel(i, std::move(level), p.source, p.setMs + info.detectorMs);
     if (!info.grid.problem.empty()) ROS_WARN("detector: '%s': %s", name.c_str(), info.grid.problem.c_str());
-    ROS_INFO("detector: '%s' level d = %g in use (%s detector, %.1f ms%s)%s", name.c_str(), p.distance,
-             toString(fast), info.detectorMs, info.gridFromCache() ? ", grid from cache" : "",
+    ROS_INFO("detector: '%s' level d = %g in use (%s detector, %.1f ms%s)%s", name.c_str(), p.distance, toString(fast),
+             info.detectorMs,
+             info.gridFromCache() ? ", grid from cache"
+             : info.gridFromLevel ? ", grid from the level before"
+                                  : "",
              wanted_[i].load() ? ", asked for by the pointer" : "");
   } catch (const std::exception& e) {
     ROS_ERROR("detector: '%s': cannot prepare level d = %g: %s; keeping its current level (or brute force)",

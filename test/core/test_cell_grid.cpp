@@ -15,6 +15,7 @@
 #include <set>
 #include <vector>
 
+#include "binary_io.h"
 #include "clod_haptics/core/brute_force.h"
 #include "clod_haptics/core/cell_grid.h"
 #include "clod_haptics/core/errors.h"
@@ -346,6 +347,49 @@ TEST(CellGrid, CoarserCellsOnlyWhereACellStaysCheap) {
     EXPECT_EQ(small.cellSize(), fine.cellSize());
     EXPECT_GT(static_cast<double>(small.bytes()), 64.0 * static_cast<double>(strip->size()));
   }
+}
+
+// A grid's bytes as the disk cache writes them: every array and scalar.
+std::vector<char> bytesOf(const CellGrid& grid) {
+  const detail::CacheMagic magic = {'T', 'E', 'S', 'T', 'G', 'R', 'I', 'D'};
+  detail::ByteWriter out(magic, 1);
+  grid.writeTo(out);
+  return out.bytes();
+}
+
+// A level's grid made from another level's grid of the mesh (a change of d) is the grid that level builds, bit for
+// bit: the candidates come from the mesh and the radius, each cell's count of distinct spheres from the level. From a
+// grid of another radius, or of another mesh, it is built.
+TEST(CellGrid, ForLevelIsTheGridThatLevelBuilds) {
+  for (const char* name : {"head.off", "mannequin-devil.off", "mesh_with_border.off"}) {
+    SCOPED_TRACE(name);
+    const auto mesh = clod_test::loadNormalized(clod_test::sharedMesh(name));
+    const ClodBuilder builder(mesh);
+    const ClodSphereSet fine = builder.build(0.0), coarse = builder.build(0.04);
+    const CellGrid fineGrid(*mesh, fine, 0.005), coarseGrid(*mesh, coarse, 0.005);
+    ASSERT_NE(bytesOf(fineGrid), bytesOf(coarseGrid));  // the levels' sphere counts differ
+    bool reused = false;
+    const CellGrid made =
+        CellGrid::forLevel(fineGrid, *mesh, coarse, 0.005, 24.0, CellGrid::Index::Auto, 1e6, 192.0, &reused);
+    EXPECT_TRUE(reused);
+    EXPECT_EQ(bytesOf(made), bytesOf(coarseGrid));
+    checkGrid(*mesh, made, probesNear(*mesh, 0.01, 5), name, &coarse);
+    // Another radius: built, the same grid.
+    const CellGrid wider(*mesh, fine, 0.008);
+    EXPECT_EQ(
+        bytesOf(CellGrid::forLevel(wider, *mesh, coarse, 0.005, 24.0, CellGrid::Index::Auto, 1e6, 192.0, &reused)),
+        bytesOf(coarseGrid));
+    EXPECT_FALSE(reused);
+  }
+  // A grid of another mesh: built (its cells are not this mesh's).
+  const auto head = clod_test::loadNormalized(clod_test::sharedMesh("head.off"));
+  const auto elephant = clod_test::loadNormalized(clod_test::sharedMesh("elephant.off"));
+  const ClodSphereSet set = ClodBuilder(elephant).build(0.02);
+  bool reused = true;
+  const CellGrid grid = CellGrid::forLevel(CellGrid(*head, ClodBuilder(head).build(0.02), 0.005), *elephant, set, 0.005,
+                                           24.0, CellGrid::Index::Auto, 1e6, 192.0, &reused);
+  EXPECT_FALSE(reused);
+  EXPECT_EQ(bytesOf(grid), bytesOf(CellGrid(*elephant, set, 0.005)));
 }
 
 TEST(CellGrid, BadRadiusThrows) {

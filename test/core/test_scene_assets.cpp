@@ -69,6 +69,29 @@ TEST(SceneAssets, GridFollowsTheRadiusSetAndOldDetectorsKeepTheirs) {
   EXPECT_EQ(assets.level(torus(), 0.003, FastLevel::Hierarchy)->gridRadius(), 0.0);
 }
 
+// A change of d while the current level is held (a node answers with it until the new one is ready): the new level's
+// grid is made from the held level's (its cells, the new sphere counts), and answers as the brute force; with nothing
+// held the grid is built.
+TEST(SceneAssets, ANewLevelMakesItsGridFromAHeldLevelOfTheMesh) {
+  SceneAssets assets(nullptr, FastLevel::Grid, 0.002);
+  SceneAssets::LevelInfo info;
+  const auto first = assets.level(torus(), 0.003, FastLevel::Grid, &info);
+  EXPECT_FALSE(info.gridFromLevel);
+  const auto second = assets.level(torus(), 0.006, FastLevel::Grid, &info);
+  EXPECT_TRUE(info.gridFromLevel);
+  EXPECT_NE(second->spheres(), first->spheres());
+  EXPECT_EQ(second->grid().cells(), first->grid().cells());
+  expectBruteForceAnswers(*second, 0.002);
+  // Its sphere counts are its own level's: a detector built alone gives every probe the same fast-level hits.
+  const ClodDetector alone(torus(), second->spheres(), FastLevel::Grid, 0.002);
+  for (const Vec3& p : nearSurfaceProbes(*torus(), 300, 0.004, 9))
+    ASSERT_EQ(second->fastLevelHits(p, 0.002), alone.fastLevelHits(p, 0.002)) << p.transpose();
+  // Another radius: built.
+  assets.setGridRadius(0.004);
+  assets.level(torus(), 0.009, FastLevel::Grid, &info);
+  EXPECT_FALSE(info.gridFromLevel);
+}
+
 TEST(SceneAssets, BadGridRadiusIsRefused) {
   SceneAssets assets(nullptr, FastLevel::Grid, 0.002);
   EXPECT_THROW(assets.setGridRadius(-1e-3), InvalidParameter);

@@ -173,6 +173,18 @@ class CellGrid {
   CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double radius, double entriesPerTriangle = 24.0,
            Index index = Index::Auto, double sliceCandidates = 1e6, double bytesPerTriangle = 192.0);
 
+  /**
+   * \brief The grid the constructor builds for set, from another level's grid of the same mesh: the candidates do not
+   * depend on the sphere set, only each cell's count of distinct spheres does, so when the cells this build would
+   * choose are sameMesh's (radius, side, origin, extent and index) the grid is sameMesh's with those counts made again
+   * (a copy and one pass over the candidates), else it is built. Bit for bit the constructor's grid either way
+   * (test_cell_grid.cpp). sameMesh must have been built for mesh (the detector and SceneAssets know it); a candidate
+   * beyond the mesh's triangles makes it build instead. reused (when given): whether sameMesh's cells were taken.
+   */
+  static CellGrid forLevel(const CellGrid& sameMesh, const TriangleMesh& mesh, const ClodSphereSet& set, double radius,
+                           double entriesPerTriangle = 24.0, Index index = Index::Auto, double sliceCandidates = 1e6,
+                           double bytesPerTriangle = 192.0, bool* reused = nullptr);
+
   /** \brief The largest pointer radius the grid answers for; larger pointers need another descent. */
   double radius() const { return radius_; }
   /** \brief Slack to subtract from an Entry's bound for the rounding of its float and 8-bit fields. */
@@ -326,6 +338,11 @@ class CellGrid {
   const CellRef* findHashed(std::uint64_t key) const noexcept;
   // The index of the cells (keys in key order, headers: their positions in the entries, refs: their slabs).
   bool useDenseIndex(Index index, std::size_t triangles) const;
+  /**
+   * Each cell's count of distinct spheres made again for set; false (the grid half rewritten) when a candidate lies
+   * beyond triangles or a header beyond the entries.
+   */
+  bool recountSpheres(const ClodSphereSet& set, std::size_t triangles);
   void buildDenseIndex(const std::vector<std::uint64_t>& keys, const std::vector<std::uint64_t>& headers,
                        std::vector<CellRef>& refs);
   void buildHashedIndex(const std::vector<std::uint64_t>& keys, const std::vector<std::uint64_t>& headers,

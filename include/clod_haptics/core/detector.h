@@ -103,8 +103,12 @@ class ClodDetector {
   /**
    * \brief What a Grid detector of mesh and spheres builds beyond them for a grid radius (> 0): the grid and the
    * trees over the spheres (padded by meshBoxTreePad(mesh)). The set must fit the mesh (fitProblem).
+   * sameMesh: the grid of another level's Grid detector of this mesh (or null): when its cells are those this build
+   * would choose, the grid is made from it (CellGrid::forLevel, the same grid at a fraction of the cost; reused, when
+   * given, says whether it was).
    */
-  static GridParts buildGridParts(const TriangleMesh& mesh, const ClodSphereSet& spheres, double radius);
+  static GridParts buildGridParts(const TriangleMesh& mesh, const ClodSphereSet& spheres, double radius,
+                                  const CellGrid* sameMesh = nullptr, bool* reused = nullptr);
   /**
    * \brief The bytes per triangle a Grid detector of mesh and spheres gives its grid (CellGrid's bytesPerTriangle):
    * kBytesPerTriangle less what it keeps beside the grid (trees, as given, the mesh's box tree, per-sphere and

@@ -42,6 +42,9 @@ class SceneAssets {
     /// The grid's disk cache outcome (Hit: the grid was read, not built). Its path is empty when no grid file was
     /// looked up: another fast level, no disk cache, or the detector shared in memory.
     CacheOutcome grid;
+    /// The grid was made from another level's grid of the mesh (CellGrid::forLevel: its cells, this level's sphere
+    /// counts) instead of built.
+    bool gridFromLevel = false;
     /** \brief Whether the grid was read from the disk cache. */
     bool gridFromCache() const { return !grid.path.empty() && grid.source == CacheSource::Hit; }
   };
