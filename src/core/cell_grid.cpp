@@ -190,6 +190,17 @@ Layout placeCells(const MeshFigures& f, double radius, double h) {
   return g;
 }
 
+/**
+ * The cells a grid of these parameters takes: the constructor's choice, which CellGrid::forLevel compares with another
+ * grid's (the memory budget: about entriesPerTriangle candidates a triangle at most, bytesPerTriangle where coarser
+ * cells cost no speed, cellSide).
+ */
+Layout chooseCells(const MeshFigures& f, std::size_t triangles, double radius, double entriesPerTriangle,
+                   double bytesPerTriangle) {
+  const double maxEntries = std::max(1e6, entriesPerTriangle * static_cast<double>(triangles));
+  return placeCells(f, radius, cellSide(f, triangles, radius, maxEntries, bytesPerTriangle));
+}
+
 /** The cells (unclamped: the floors of the coordinates) that triangle t's box grown by reach spans. */
 void spannedCells(const TriangleMesh& mesh, const Layout& g, std::size_t t, std::int64_t l[3], std::int64_t u[3]) {
   const Vec3 &a = mesh.vertex(t, 0), &b = mesh.vertex(t, 1), &c = mesh.vertex(t, 2);
@@ -800,9 +811,7 @@ CellGrid::CellGrid(const TriangleMesh& mesh, const ClodSphereSet& set, double ra
   if (!(radius > 0.0) || !std::isfinite(radius))
     throw InvalidParameter("cell grid radius must be finite and > 0, got " + std::to_string(radius));
   const MeshFigures figures = measure(mesh);
-  const double maxEntries = std::max(1e6, entriesPerTriangle * static_cast<double>(mesh.size()));
-  const Layout layout =
-      placeCells(figures, radius, cellSide(figures, mesh.size(), radius, maxEntries, bytesPerTriangle));
+  const Layout layout = chooseCells(figures, mesh.size(), radius, entriesPerTriangle, bytesPerTriangle);
   const double h = layout.h;
   radius_ = radius;
   cell_ = h;
@@ -842,10 +851,7 @@ CellGrid CellGrid::forLevel(const CellGrid& sameMesh, const TriangleMesh& mesh, 
   if (reused) *reused = false;
   if (!sameMesh.empty() && sameMesh.radius_ == radius) {
     // The cells this level's build would choose: the same as the other grid's, then the same candidates.
-    const MeshFigures figures = measure(mesh);
-    const double maxEntries = std::max(1e6, entriesPerTriangle * static_cast<double>(mesh.size()));
-    const Layout layout =
-        placeCells(figures, radius, cellSide(figures, mesh.size(), radius, maxEntries, bytesPerTriangle));
+    const Layout layout = chooseCells(measure(mesh), mesh.size(), radius, entriesPerTriangle, bytesPerTriangle);
     const bool sameCells = layout.h == sameMesh.cell_ && layout.origin == sameMesh.origin_ &&
                            std::equal(layout.dims, layout.dims + 3, sameMesh.dims_) &&
                            sameMesh.dense() == sameMesh.useDenseIndex(index, mesh.size());

@@ -200,17 +200,17 @@ std::shared_ptr<const ClodDetector> SceneAssets::level(const std::shared_ptr<con
   auto set = spheresLocked(mesh, distance, out);
   const auto start = std::chrono::steady_clock::now();
   const CellGrid* sameMesh = sibling ? &sibling->grid() : nullptr;
+  auto build = [&](double radius) {
+    return ClodDetector::buildGridParts(*mesh, *set, radius, sameMesh, &out.gridFromLevel);
+  };
   ClodDetector::GridSource gridSource;
   if (gridCache_ && fastLevel == FastLevel::Grid) {
     gridSource = [&](double radius) {
       return gridCache_->getOrBuild(
-          *mesh, *set, gridKeyLocked(mesh, distance, *set, radius),
-          [&] { return ClodDetector::buildGridParts(*mesh, *set, radius, sameMesh, &out.gridFromLevel); }, &out.grid);
+          *mesh, *set, gridKeyLocked(mesh, distance, *set, radius), [&] { return build(radius); }, &out.grid);
     };
   } else if (sameMesh) {
-    gridSource = [&](double radius) {
-      return ClodDetector::buildGridParts(*mesh, *set, radius, sameMesh, &out.gridFromLevel);
-    };
+    gridSource = build;
   }
   auto detector = std::make_shared<const ClodDetector>(mesh, set, fastLevel, gridRadius, gridSource);
   out.detectorMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
